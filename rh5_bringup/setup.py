@@ -1,0 +1,46 @@
+"""ament_python package rh5_bringup; node executables install into lib/rh5_bringup/ (see setup.cfg)."""
+
+from pathlib import Path
+
+from setuptools import find_packages, setup
+
+PACKAGE = "rh5_bringup"
+HERE = Path(__file__).parent
+
+
+def share_files(folder: str) -> list[tuple[str, list[str]]]:
+    """Install every file of ``folder`` (if present) into share/<package>/<folder>."""
+    files = sorted(str(p.relative_to(HERE)) for p in (HERE / folder).glob("*") if p.is_file())
+    return [(f"share/{PACKAGE}/{folder}", files)] if files else []
+
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    package_data={"": ["*.yaml", "*.json", "*.md", "py.typed"]},
+    include_package_data=True,
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        *share_files("launch"),
+        *share_files("config"),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=False,
+    maintainer="RH5 control suite developers",
+    maintainer_email="rh5-control@users.noreply.github.com",
+    description=(
+        "RH5 hardware layer (NDLCom over UDP and CAN, 1 kHz driver, simulated hardware), recorder, launcher and the rh5 command line."
+    ),
+    license="BSD-3-Clause",
+    tests_require=["pytest"],
+    entry_points={
+        "console_scripts": [
+            "driver_node = rh5_bringup.driver_node:main",
+            "sim_hardware_node = rh5_bringup.sim_hardware_node:main",
+            "recorder_node = rh5_bringup.recorder_node:main",
+            "rh5 = rh5_bringup.cli:main",
+        ],
+    },
+)

@@ -1,0 +1,1 @@
+"""rh5_joint_stabilizer."""

@@ -1,0 +1,43 @@
+"""ament_python package rh5_planner; node executables install into lib/rh5_planner/ (see setup.cfg)."""
+
+from pathlib import Path
+
+from setuptools import find_packages, setup
+
+PACKAGE = "rh5_planner"
+HERE = Path(__file__).parent
+
+
+def share_files(folder: str) -> list[tuple[str, list[str]]]:
+    """Install every file of ``folder`` (if present) into share/<package>/<folder>."""
+    files = sorted(str(p.relative_to(HERE)) for p in (HERE / folder).glob("*") if p.is_file())
+    return [(f"share/{PACKAGE}/{folder}", files)] if files else []
+
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    package_data={"": ["*.yaml", "*.json", "*.md", "py.typed"]},
+    include_package_data=True,
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        *share_files("launch"),
+        *share_files("config"),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=False,
+    maintainer="RH5 control suite developers",
+    maintainer_email="rh5-control@users.noreply.github.com",
+    description=(
+        "Contact-stability soft-constrained Box-FDDP whole-body trajectory optimisation for RH5 (Crocoddyl), limit analysis and the planner node."
+    ),
+    license="BSD-3-Clause",
+    tests_require=["pytest"],
+    entry_points={
+        "console_scripts": [
+            "planner_node = rh5_planner.planner_node:main",
+        ],
+    },
+)
