@@ -1,5 +1,6 @@
-"""ament_python package rh5_bringup; node executables install into lib/rh5_bringup/ (see setup.cfg)."""
+"""ament_python package; node executables install into lib/<package>/ (setup.cfg) for ros2 run."""
 
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from setuptools import find_packages, setup
@@ -30,9 +31,7 @@ setup(
     zip_safe=False,
     maintainer="RH5 control suite developers",
     maintainer_email="rh5-control@users.noreply.github.com",
-    description=(
-        "RH5 hardware layer (NDLCom over UDP and CAN, 1 kHz driver, simulated hardware), recorder, launcher and the rh5 command line."
-    ),
+    description=ET.parse(HERE / "package.xml").findtext("description"),
     license="BSD-3-Clause",
     tests_require=["pytest"],
     entry_points={

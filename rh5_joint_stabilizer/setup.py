@@ -1,5 +1,6 @@
-"""ament_python package rh5_joint_stabilizer; node executables install into lib/rh5_joint_stabilizer/ (see setup.cfg)."""
+"""ament_python package; node executables install into lib/<package>/ (setup.cfg) for ros2 run."""
 
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from setuptools import find_packages, setup
@@ -30,7 +31,7 @@ setup(
     zip_safe=False,
     maintainer="RH5 control suite developers",
     maintainer_email="rh5-control@users.noreply.github.com",
-    description=("1 kHz joint-space stabilisation and playback of planned RH5 motions."),
+    description=ET.parse(HERE / "package.xml").findtext("description"),
     license="BSD-3-Clause",
     tests_require=["pytest"],
     entry_points={
