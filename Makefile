@@ -28,7 +28,7 @@ $(STAMP): constraints.txt requirements.txt $(foreach p,$(PACKAGES),$(p)/setup.py
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	@touch $(VENV)/COLCON_IGNORE  # keep colcon from crawling the venv's share/*/package.xml
 	$(PY) -m pip install --quiet --disable-pip-version-check -c constraints.txt -r requirements.txt
-	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation --use-pep517 $(foreach p,$(PACKAGES),-e ./$(p))
+	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation --use-pep517 --config-settings editable_mode=compat $(foreach p,$(PACKAGES),-e ./$(p))
 	@touch $(STAMP)
 
 # Re-resolve the lock from requirements.txt in a scratch venv (review the diff before committing).

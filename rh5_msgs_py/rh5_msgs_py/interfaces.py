@@ -8,6 +8,7 @@ and the robot description are reliable + transient local (late joiners get them)
 
 from __future__ import annotations
 
+import importlib
 from typing import Final, NamedTuple
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -97,3 +98,10 @@ STABILIZER_NODE: Final = "stabilizer"
 DRIVER_NODE: Final = "driver"
 SIM_HARDWARE_NODE: Final = "sim_hardware"
 RECORDER_NODE: Final = "recorder"
+
+
+def message_class(type_name: str) -> type:
+    """The Python class of a ``pkg/msg/Type`` name, e.g. ``sensor_msgs/msg/JointState``."""
+    package, kind, name = type_name.split("/")
+    module = importlib.import_module(f"{package}.{kind}")
+    return getattr(module, name)

@@ -1,0 +1,107 @@
+"""The ``rh5`` command line: start the suite (``rh5 up``) and, later, run experiments and reports."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import sys
+import time
+from datetime import datetime
+from pathlib import Path
+from types import FrameType
+
+from rh5_bringup.launcher import Bringup, SuiteRun, load_bringup, wait_for_nodes
+
+DEFAULT_LOG_ROOT = Path(".ros") / "log"
+
+
+def _run_dir(root: Path) -> Path:
+    return root / datetime.now().strftime("rh5_%Y%m%d_%H%M%S_%f")
+
+
+def format_report(run: SuiteRun, exit_codes: dict[str, int]) -> str:
+    """One block per node: its exit code and what it saw and sent."""
+    lines = []
+    for proc in run.processes:
+        summary = proc.summary() or {}
+        seen = ", ".join(f"{t}={n}" for t, n in sorted(summary.get("seen", {}).items())) or "nothing"
+        sent = ", ".join(f"{t}={n}" for t, n in sorted(summary.get("sent", {}).items())) or "nothing"
+        extra = {k: v for k, v in summary.items() if k not in ("node", "seen", "sent")}
+        lines.append(f"{proc.spec.name:<13} exit {exit_codes[proc.spec.name]}")
+        lines.append(f"  saw:  {seen}")
+        lines.append(f"  sent: {sent}")
+        if extra:
+            lines.append("  state: " + ", ".join(f"{k}={v}" for k, v in sorted(extra.items())))
+        if not summary:
+            lines.append(f"  (no summary; see {proc.stderr_path})")
+    return "\n".join(lines)
+
+
+def up(bringup: Bringup, duration_s: float | None, log_root: Path) -> int:
+    """Start the suite, wait until every node is in the graph, run, stop cleanly and report."""
+    run = SuiteRun(bringup, _run_dir(log_root))
+    stop_requested = False
+
+    def request_stop(_signum: int, _frame: FrameType | None) -> None:
+        nonlocal stop_requested
+        stop_requested = True
+
+    previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    os.environ.update(run.env)  # the launcher's own graph observer joins the run's domain
+    import rclpy  # noqa: PLC0415 (after the environment is set)
+
+    rclpy.init(signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    observer = rclpy.create_node("rh5_launcher")
+    try:
+        run.start()
+        print(f"rh5 up: ROS_DOMAIN_ID={run.domain_id}, logs in {run.log_dir}", flush=True)
+        names = {n.name for n in bringup.nodes}
+        namespace = "/" + bringup.namespace.strip("/") if bringup.namespace else "/"
+        missing = wait_for_nodes(observer, names, namespace)
+        if missing:
+            print(f"rh5 up: never appeared in the ROS graph: {sorted(missing)}", file=sys.stderr)
+        else:
+            print(f"rh5 up: {len(names)} nodes running: {', '.join(sorted(names))}", flush=True)
+        deadline = None if duration_s is None else time.monotonic() + duration_s
+        while not stop_requested and not run.exited() and (deadline is None or time.monotonic() < deadline):
+            time.sleep(0.05)
+        crashed = [p.spec.name for p in run.exited()]
+        if crashed:
+            print(f"rh5 up: stopped on their own: {crashed}", file=sys.stderr)
+    finally:
+        exit_codes = run.stop()
+        observer.destroy_node()
+        rclpy.try_shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    print(format_report(run, exit_codes), flush=True)
+    return 0 if not missing and all(code == 0 for code in exit_codes.values()) else 1
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``rh5``."""
+    parser = argparse.ArgumentParser(prog="rh5", description="RH5 control suite command line.")
+    commands = parser.add_subparsers(dest="command", required=True)
+    up_parser = commands.add_parser("up", help="start the suite; Ctrl-C stops every node cleanly")
+    up_parser.add_argument("--sim", choices=["kinematic", "physics"], default="kinematic", help="simulated hardware")
+    up_parser.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    up_parser.add_argument("--bringup", type=Path, default=None, help="bringup description YAML")
+    up_parser.add_argument("--log-dir", type=Path, default=DEFAULT_LOG_ROOT, help="where node logs go")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``rh5``."""
+    args = build_parser().parse_args(argv)
+    if args.command == "up":
+        if args.duration is not None and args.duration <= 0:
+            print("rh5 up: --duration must be positive", file=sys.stderr)
+            return 2
+        bringup = load_bringup(args.bringup).with_parameters("sim_hardware", mode=args.sim)
+        return up(bringup, args.duration, args.log_dir)
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,169 @@
+"""Start the suite's nodes as real processes from the bringup description, and stop them cleanly.
+
+There is no ros2 launch wheel here, so this is the suite's own launcher: each node runs
+as its console script in its own process group (a terminal's Ctrl-C reaches only the
+launcher, which then stops the nodes in reverse order with SIGINT, escalating to SIGTERM
+and SIGKILL), in a ROS domain reserved for the run, with its output in the run's log folder.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from rh5_msgs_py.node_runtime import parse_summary
+from rh5_msgs_py.ros_env import DomainLease, suite_environment
+
+STOP_GRACE_S = 10.0
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """One node of the bringup description."""
+
+    name: str
+    package: str
+    executable: str
+    parameters: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Bringup:
+    """The suite to start: a namespace and its nodes in start order."""
+
+    namespace: str
+    nodes: tuple[NodeSpec, ...]
+
+    def with_parameters(self, node_name: str, **parameters: Any) -> Bringup:
+        """A copy in which ``node_name`` gets extra/overriding parameters."""
+        if node_name not in {n.name for n in self.nodes}:
+            msg = f"no node {node_name!r} in the bringup (have {[n.name for n in self.nodes]})"
+            raise KeyError(msg)
+        nodes = tuple(
+            NodeSpec(n.name, n.package, n.executable, {**n.parameters, **parameters}) if n.name == node_name else n
+            for n in self.nodes
+        )
+        return Bringup(self.namespace, nodes)
+
+
+def load_bringup(path: Path | None = None) -> Bringup:
+    """Read the bringup description (default: the packaged rh5_bringup/bringup.yaml)."""
+    if path is None:
+        text = resources.files("rh5_bringup").joinpath("bringup.yaml").read_text(encoding="utf-8")
+    else:
+        text = Path(path).read_text(encoding="utf-8")
+    document = yaml.safe_load(text)
+    nodes = tuple(
+        NodeSpec(n["name"], n["package"], n["executable"], dict(n.get("parameters") or {})) for n in document["nodes"]
+    )
+    return Bringup(str(document.get("namespace") or ""), nodes)
+
+
+def node_command(node: NodeSpec, namespace: str = "") -> list[str]:
+    """The command line that starts ``node`` (its console script with --ros-args)."""
+    command = [str(Path(sys.prefix) / "bin" / node.executable), "--ros-args", "-r", f"__node:={node.name}"]
+    if namespace:
+        command += ["-r", f"__ns:=/{namespace.strip('/')}"]
+    for key, value in node.parameters.items():
+        command += ["-p", f"{key}:={json.dumps(value)}"]  # JSON is YAML flow style, which --ros-args parses
+    return command
+
+
+@dataclass
+class NodeProcess:
+    """A started node: its process and where its output goes."""
+
+    spec: NodeSpec
+    process: subprocess.Popen[bytes]
+    stdout_path: Path
+    stderr_path: Path
+
+    def output(self) -> str:
+        """What the node printed on stdout so far."""
+        return self.stdout_path.read_text(encoding="utf-8", errors="replace")
+
+    def summary(self) -> dict[str, Any] | None:
+        """The node's exit summary (what it saw and sent), once it has stopped."""
+        return parse_summary(self.output())
+
+
+class SuiteRun:
+    """A running suite: processes, their domain and log folder. Use as a context manager."""
+
+    def __init__(self, bringup: Bringup, log_dir: Path, domain_id: int | None = None) -> None:
+        self.bringup = bringup
+        self.log_dir = Path(log_dir)
+        self._lease = DomainLease() if domain_id is None else None
+        self.domain_id = self._lease.domain_id if self._lease is not None else domain_id
+        self.env = suite_environment(self.domain_id, self.log_dir)
+        self.processes: list[NodeProcess] = []
+
+    def start(self) -> None:
+        """Start every node in description order."""
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        for spec in self.bringup.nodes:
+            stdout_path = self.log_dir / f"{spec.name}.out"
+            stderr_path = self.log_dir / f"{spec.name}.err"
+            with stdout_path.open("wb") as out, stderr_path.open("wb") as err:
+                process = subprocess.Popen(
+                    node_command(spec, self.bringup.namespace),
+                    stdout=out,
+                    stderr=err,
+                    stdin=subprocess.DEVNULL,
+                    env=self.env,
+                    start_new_session=True,
+                )
+            self.processes.append(NodeProcess(spec, process, stdout_path, stderr_path))
+
+    def exited(self) -> list[NodeProcess]:
+        """Nodes that have stopped on their own."""
+        return [p for p in self.processes if p.process.poll() is not None]
+
+    def stop(self, grace_s: float = STOP_GRACE_S) -> dict[str, int]:
+        """Stop every node, newest first: SIGINT, then SIGTERM and SIGKILL after ``grace_s``. Idempotent."""
+        for proc in reversed(self.processes):
+            if proc.process.poll() is None:
+                proc.process.send_signal(signal.SIGINT)
+        deadline = time.monotonic() + grace_s
+        for proc in self.processes:
+            for sig in (signal.SIGTERM, signal.SIGKILL):
+                try:
+                    proc.process.wait(timeout=max(0.1, deadline - time.monotonic()))
+                    break
+                except subprocess.TimeoutExpired:
+                    os.killpg(proc.process.pid, sig)
+                    deadline = time.monotonic() + 2.0
+            proc.process.wait()
+        if self._lease is not None:
+            self._lease.release()
+        return {p.spec.name: p.process.returncode for p in self.processes}
+
+    def __enter__(self) -> SuiteRun:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+def wait_for_nodes(graph_node: Any, names: set[str], namespace: str = "/", timeout_s: float = 20.0) -> set[str]:
+    """Wait until every node in ``names`` is visible in the ROS graph; return those that never appeared."""
+    import rclpy  # noqa: PLC0415 (the launcher imports ROS only when it observes the graph)
+
+    deadline = time.monotonic() + timeout_s
+    missing = set(names)
+    while missing and time.monotonic() < deadline:
+        rclpy.spin_once(graph_node, timeout_sec=0.1)
+        visible = {name for name, ns in graph_node.get_node_names_and_namespaces() if ns == namespace}
+        missing = names - visible
+    return missing

@@ -1,0 +1,57 @@
+"""The bringup description and the command lines the launcher builds from it (no processes)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+from rh5_bringup.cli import build_parser, main
+from rh5_bringup.launcher import NodeSpec, load_bringup, node_command
+from rh5_msgs_py.parameters import load_spec
+
+PACKAGE_OF_SPEC = {
+    "planner": "rh5_planner",
+    "mapper": "rh5_hyrodyn_mapper",
+    "stabilizer": "rh5_joint_stabilizer",
+    "driver": "rh5_bringup",
+    "sim_hardware": "rh5_bringup",
+    "recorder": "rh5_bringup",
+}
+
+
+def test_packaged_bringup_starts_the_six_nodes() -> None:
+    bringup = load_bringup()
+    assert [n.name for n in bringup.nodes] == ["recorder", "sim_hardware", "driver", "mapper", "stabilizer", "planner"]
+
+
+def test_bringup_parameters_are_declared_and_valid_in_the_node_specs() -> None:
+    for node in load_bringup().nodes:
+        specs = {s.name: s for s in load_spec(PACKAGE_OF_SPEC[node.name], f"params/{node.name}.yaml")}
+        for key, value in node.parameters.items():
+            assert key in specs, f"{node.name}: {key} is not a declared parameter"
+            assert specs[key].check(value) == ""
+
+
+def test_node_command_renames_namespaces_and_sets_parameters() -> None:
+    spec = NodeSpec("driver", "rh5_bringup", "driver_node", {"rate_hz": 500.0, "silent_boards": ["a", "b"]})
+    command = node_command(spec, "robot1")
+    assert command[0] == str(Path(sys.prefix) / "bin" / "driver_node")
+    assert command[1:5] == ["--ros-args", "-r", "__node:=driver", "-r"]
+    assert "__ns:=/robot1" in command
+    assert "rate_hz:=500.0" in command
+    assert 'silent_boards:=["a", "b"]' in command
+
+
+def test_with_parameters_overrides_one_node_only() -> None:
+    bringup = load_bringup().with_parameters("sim_hardware", mode="physics")
+    assert {n.name: n.parameters.get("mode") for n in bringup.nodes}["sim_hardware"] == "physics"
+    with pytest.raises(KeyError, match="no node 'nope'"):
+        bringup.with_parameters("nope", x=1)
+
+
+def test_cli_rejects_a_non_positive_duration(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["up", "--duration", "0"]) == 2
+    assert "--duration must be positive" in capsys.readouterr().err
+    assert build_parser().parse_args(["up", "--sim", "physics"]).sim == "physics"

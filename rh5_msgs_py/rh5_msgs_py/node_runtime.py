@@ -1,0 +1,100 @@
+"""What every node of the suite shares: spec'd parameters, counted topics, a clean SIGINT exit.
+
+Each node prints one ``RH5_SUMMARY {json}`` line on stdout when it stops (what it saw and
+sent), which the launcher collects; ``run_node`` turns SIGINT/SIGTERM into exit code 0
+and a bad start-up (e.g. an invalid parameter) into exit code 2 with the reason.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections import Counter
+from collections.abc import Callable
+from typing import Any
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.subscription import Subscription
+
+from rh5_msgs_py.interfaces import Topic, message_class
+from rh5_msgs_py.parameters import declare_parameters, load_spec, parameter_values
+from rh5_msgs_py.ros_env import apply_safe_defaults
+
+SUMMARY_PREFIX = "RH5_SUMMARY "
+EXIT_BAD_START = 2
+
+
+class SuiteNode(Node):
+    """Base node: declares the parameters of its spec file and counts what it receives and sends."""
+
+    def __init__(self, node_name: str, spec_package: str, spec_resource: str, **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        self.param_specs = load_spec(spec_package, spec_resource)
+        declare_parameters(self, self.param_specs)
+        self.seen: Counter[str] = Counter()
+        self.sent: Counter[str] = Counter()
+
+    @property
+    def params(self) -> dict[str, Any]:
+        """Current values of this node's parameters."""
+        return parameter_values(self, self.param_specs)
+
+    def subscribe(
+        self, topic: Topic, callback: Callable[[Any], None] | None = None, *, raw: bool = False
+    ) -> Subscription:
+        """Subscribe with the topic's contract type and QoS, counting every message."""
+
+        def on_message(msg: Any) -> None:
+            self.seen[topic.name] += 1
+            if callback is not None:
+                callback(msg)
+
+        return self.create_subscription(message_class(topic.type), topic.name, on_message, topic.qos, raw=raw)
+
+    def advertise(self, topic: Topic) -> Callable[[Any], None]:
+        """Create a publisher with the topic's contract type and QoS; return a counting publish function."""
+        publisher: Publisher = self.create_publisher(message_class(topic.type), topic.name, topic.qos)
+
+        def publish(msg: Any) -> None:
+            publisher.publish(msg)
+            self.sent[topic.name] += 1
+
+        return publish
+
+    def summary(self) -> dict[str, Any]:
+        """What this node saw and sent, for the launcher's report."""
+        return {"node": self.get_name(), "seen": dict(self.seen), "sent": dict(self.sent)}
+
+
+def run_node(factory: Callable[[], SuiteNode], args: list[str] | None = None) -> None:
+    """Run one node until SIGINT/SIGTERM; exit 0 when stopped, 2 when it could not start."""
+    apply_safe_defaults()
+    rclpy.init(args=args if args is not None else sys.argv)
+    node: SuiteNode | None = None
+    try:
+        node = factory()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except Exception as err:
+        if node is not None:
+            raise
+        print(f"cannot start: {err}", file=sys.stderr, flush=True)
+        rclpy.try_shutdown()
+        sys.exit(EXIT_BAD_START)
+    finally:
+        if node is not None:
+            print(SUMMARY_PREFIX + json.dumps(node.summary(), sort_keys=True), flush=True)
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def parse_summary(output: str) -> dict[str, Any] | None:
+    """Find a node's summary line in its captured stdout."""
+    for line in reversed(output.splitlines()):
+        if line.startswith(SUMMARY_PREFIX):
+            return json.loads(line[len(SUMMARY_PREFIX) :])
+    return None

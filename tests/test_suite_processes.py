@@ -1,0 +1,152 @@
+"""Every node of the suite as a real process: visible in the graph, its parameters declared, clean SIGINT exit."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, load_bringup, wait_for_nodes
+from rh5_msgs_py import interfaces
+from rh5_msgs_py.names import JOINT_NAMES
+from rh5_msgs_py.parameters import load_spec
+
+pytestmark = pytest.mark.ros
+
+SPEC_OF_NODE = {
+    "planner": ("rh5_planner", "params/planner.yaml"),
+    "mapper": ("rh5_hyrodyn_mapper", "params/mapper.yaml"),
+    "stabilizer": ("rh5_joint_stabilizer", "params/stabilizer.yaml"),
+    "driver": ("rh5_bringup", "params/driver.yaml"),
+    "sim_hardware": ("rh5_bringup", "params/sim_hardware.yaml"),
+    "recorder": ("rh5_bringup", "params/recorder.yaml"),
+}
+RUN_SECONDS = 2.0
+
+
+def _call(node: Any, client: Any, request: Any, timeout_s: float = 10.0) -> Any:
+    import rclpy
+
+    assert client.wait_for_service(timeout_sec=timeout_s), f"service {client.srv_name} never appeared"
+    future = client.call_async(request)
+    rclpy.spin_until_future_complete(node, future, timeout_sec=timeout_s)
+    assert future.done(), f"service {client.srv_name} did not answer"
+    return future.result()
+
+
+@pytest.fixture(scope="module")
+def suite(ros_graph: Any, ros_test_environment: dict[str, str], tmp_path_factory: pytest.TempPathFactory) -> Any:
+    """The whole bringup running for a few seconds, then stopped with SIGINT; yields what was observed."""
+    import rclpy
+    from rcl_interfaces.srv import DescribeParameters, ListParameters
+    from std_msgs.msg import String
+
+    bringup = load_bringup()
+    descriptions: list[str] = []
+    ros_graph.create_subscription(
+        String, interfaces.ROBOT_DESCRIPTION.name, lambda m: descriptions.append(m.data), interfaces.LATCHED_QOS
+    )
+    # The suite joins the session's domain, where the observer lives.
+    run = SuiteRun(bringup, tmp_path_factory.mktemp("suite_logs"), int(ros_test_environment["ROS_DOMAIN_ID"]))
+    observed: dict[str, Any] = {"parameters": {}, "descriptors": {}}
+    with run:
+        observed["missing"] = wait_for_nodes(ros_graph, {n.name for n in bringup.nodes})
+        for name, spec_source in SPEC_OF_NODE.items():
+            listed = _call(
+                ros_graph,
+                ros_graph.create_client(ListParameters, f"/{name}/list_parameters"),
+                ListParameters.Request(),
+            )
+            observed["parameters"][name] = set(listed.result.names)
+            spec_names = [s.name for s in load_spec(*spec_source)]
+            described = _call(
+                ros_graph,
+                ros_graph.create_client(DescribeParameters, f"/{name}/describe_parameters"),
+                DescribeParameters.Request(names=spec_names),
+            )
+            observed["descriptors"][name] = {d.name: d for d in described.descriptors}
+        end = time.monotonic() + RUN_SECONDS
+        while time.monotonic() < end:
+            rclpy.spin_once(ros_graph, timeout_sec=0.05)
+        observed["crashed"] = [p.spec.name for p in run.exited()]
+    observed["exit_codes"] = {p.spec.name: p.process.returncode for p in run.processes}
+    observed["summaries"] = {p.spec.name: p.summary() for p in run.processes}
+    observed["stderr"] = {p.spec.name: p.stderr_path.read_text() for p in run.processes}
+    observed["descriptions"] = descriptions
+    return observed
+
+
+def test_every_node_appears_in_the_graph(suite: Any) -> None:
+    assert suite["missing"] == set()
+    assert suite["crashed"] == [], suite["stderr"]
+
+
+@pytest.mark.parametrize("name", sorted(SPEC_OF_NODE))
+def test_node_declares_its_spec_parameters_with_descriptions(suite: Any, name: str) -> None:
+    specs = load_spec(*SPEC_OF_NODE[name])
+    assert {s.name for s in specs} <= suite["parameters"][name]
+    for spec in specs:
+        descriptor = suite["descriptors"][name][spec.name]
+        assert descriptor.description == spec.description
+        assert descriptor.read_only == spec.read_only
+
+
+@pytest.mark.parametrize("name", sorted(SPEC_OF_NODE))
+def test_node_exits_cleanly_on_sigint_with_a_summary(suite: Any, name: str) -> None:
+    assert suite["exit_codes"][name] == 0, suite["stderr"][name]
+    assert suite["summaries"][name] is not None
+    assert suite["summaries"][name]["node"] == name
+
+
+def test_the_nodes_talk_to_each_other(suite: Any) -> None:
+    """planner -> stabilizer -> mapper -> driver -> mapper: each saw its input; the recorder saw them all."""
+    seen = {name: s["seen"] for name, s in suite["summaries"].items()}
+    assert seen["stabilizer"].get("planned_trajectory", 0) >= 1
+    assert seen["mapper"].get("joint_commands", 0) >= 10
+    assert seen["driver"].get("actuator_commands", 0) >= 10
+    assert seen["mapper"].get("actuator_states", 0) >= 10
+    for topic in ("planned_trajectory", "joint_commands", "actuator_commands", "actuator_states", "joint_states"):
+        assert seen["recorder"].get(topic, 0) >= 1, topic
+
+
+def test_robot_description_is_latched_and_complete(suite: Any) -> None:
+    assert suite["descriptions"], "no robot_description received"
+    urdf = suite["descriptions"][-1]
+    assert urdf.count('type="revolute"') == len(JOINT_NAMES)
+    for joint in JOINT_NAMES:
+        assert f'name="{joint}"' in urdf
+
+
+def test_bad_launch_parameter_is_refused_with_the_reason(ros_test_environment: dict[str, str], tmp_path: Path) -> None:
+    bad = NodeSpec("driver", "rh5_bringup", "driver_node", {"rate_hz": 0.0})
+    with SuiteRun(Bringup("", (bad,)), tmp_path) as run:
+        run.processes[0].process.wait(timeout=30)
+    proc = run.processes[0]
+    assert proc.process.returncode == 2
+    assert "rate_hz" in proc.stderr_path.read_text()
+
+
+def test_runtime_parameter_change_is_validated(
+    ros_graph: Any, ros_test_environment: dict[str, str], tmp_path: Path
+) -> None:
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+
+    bringup = load_bringup()
+    only_driver = Bringup("", tuple(n for n in bringup.nodes if n.name == "driver"))
+    with SuiteRun(only_driver, tmp_path, int(ros_test_environment["ROS_DOMAIN_ID"])):
+        assert wait_for_nodes(ros_graph, {"driver"}) == set()
+        client = ros_graph.create_client(SetParameters, "/driver/set_parameters")
+
+        def set_timeout(value: float) -> Any:
+            value_msg = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
+            request = SetParameters.Request(parameters=[Parameter(name="command_timeout_s", value=value_msg)])
+            return _call(ros_graph, client, request).results[0]
+
+        rejected = set_timeout(-1.0)
+        accepted = set_timeout(0.05)
+    assert not rejected.successful
+    assert "command_timeout_s" in rejected.reason
+    assert accepted.successful
