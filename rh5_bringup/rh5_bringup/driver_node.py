@@ -1,7 +1,7 @@
 """The driver node: the 1 kHz link between actuator_commands/actuator_states and the boards.
 
 At this stage no board transport exists: ``~/enable``, ``~/estop`` and ``~/reset_estop``
-keep their latching semantics, and the node echoes the latest enabled command as the
+keep their latching semantics, and the node echoes the latest command as the
 measured state (ideal hardware), 100 times a second. The NDLCom transports and the
 dedicated 1 kHz loop replace the echo with the hardware-layer issue.
 """
