@@ -89,7 +89,8 @@ def test_installed_node_runs_from_the_sourced_install_space(
 
 def test_colcon_test_passes_on_the_workspace(workspace: Path) -> None:
     result = _colcon(workspace, "test", "--return-code-on-test-failure", paths=[REPO_ROOT / p for p in PACKAGES])
-    assert result.returncode == 0, result.stdout[-4000:] + result.stderr[-2000:]
+    logs = "".join(path.read_text()[-3000:] for path in (workspace / "log" / "latest_test").glob("*/stdout_stderr.log"))
+    assert result.returncode == 0, result.stdout[-2000:] + logs
 
 
 def test_colcon_test_fails_when_a_package_test_fails(tmp_path: Path) -> None:
@@ -112,7 +113,8 @@ def test_colcon_test_fails_when_a_package_test_fails(tmp_path: Path) -> None:
             from setuptools import setup
             setup(name="failing_probe", version="0.0.0", packages=["failing_probe"],
                   data_files=[("share/ament_index/resource_index/packages", ["resource/failing_probe"]),
-                              ("share/failing_probe", ["package.xml"])])
+                              ("share/failing_probe", ["package.xml"])],
+                  tests_require=["pytest"])
             """
         )
     )

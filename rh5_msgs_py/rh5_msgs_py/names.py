@@ -105,7 +105,7 @@ ACTUATOR_INDEX: Final[dict[str, int]] = {name: i for i, name in enumerate(ACTUAT
 LINEAR_ACTUATOR_NAMES: Final[tuple[str, ...]] = tuple(
     a for s in SUBMECHANISMS if s.kind not in ("serial", "transmission") for a in s.actuators
 )
-"""The 16 linear actuators of the parallel submechanisms (lengths in m, forces in N)."""
+"""The 14 linear actuators of the parallel submechanisms (lengths in m, forces in N)."""
 
 FOOT_FRAMES: Final = {"left": "LLFoot_Sole", "right": "LRFoot_Sole"}
 """Sole frames of the model (centre of the 200 x 80 mm support rectangle, z up)."""

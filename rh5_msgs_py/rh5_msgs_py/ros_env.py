@@ -27,7 +27,7 @@ SAFE_DEFAULTS: Mapping[str, str] = {
 # ROS_DOMAIN_ID values whose DDS ports are valid on Linux (REP 2005 / design docs: 0..101).
 DOMAIN_IDS = range(1, 102)
 # Loopback TCP ports used as machine-wide locks, one per domain id (held while a run lives).
-_LOCK_PORT_BASE = 23100
+LOCK_PORT_BASE = 23100
 
 
 def apply_safe_defaults(env: MutableMapping[str, str] | None = None) -> MutableMapping[str, str]:
@@ -61,13 +61,15 @@ class DomainLease:
     after SIGKILL and two concurrent test runs can never share a domain.
     """
 
-    def __init__(self, candidates: range = DOMAIN_IDS, seed: int | None = None) -> None:
+    def __init__(
+        self, candidates: range = DOMAIN_IDS, seed: int | None = None, lock_port_base: int = LOCK_PORT_BASE
+    ) -> None:
         order = list(candidates)
         random.Random(seed if seed is not None else os.getpid()).shuffle(order)
         for domain_id in order:
             sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
             try:
-                sock.bind(("127.0.0.1", _LOCK_PORT_BASE + domain_id))
+                sock.bind(("127.0.0.1", lock_port_base + domain_id))
                 sock.listen(1)
             except OSError as err:
                 sock.close()

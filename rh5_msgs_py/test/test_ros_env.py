@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -24,14 +25,15 @@ def test_suite_environment_forces_localhost_domain_and_log_dir(tmp_path: Path) -
 
 
 def test_domain_leases_are_unique_until_released() -> None:
-    candidates = range(90, 93)
-    leases = [DomainLease(candidates, seed=1) for _ in candidates]
+    # A private lock-port space: the test run's own lease (and a concurrent run's) must not interfere.
+    candidates, private = range(90, 93), {"lock_port_base": 41000 + os.getpid() % 1000}
+    leases = [DomainLease(candidates, seed=1, **private) for _ in candidates]
     assert len({lease.domain_id for lease in leases}) == 3
     with pytest.raises(RuntimeError, match="no free ROS_DOMAIN_ID"):
-        DomainLease(candidates)
+        DomainLease(candidates, **private)
     leases[0].release()
     leases[0].release()  # idempotent
-    again = DomainLease(candidates)
+    again = DomainLease(candidates, **private)
     assert again.domain_id == leases[0].domain_id
     for lease in [again, *leases[1:]]:
         lease.release()
