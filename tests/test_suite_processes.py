@@ -26,6 +26,11 @@ SPEC_OF_NODE = {
 RUN_SECONDS = 2.0
 
 
+def _log_dir(env: dict[str, str], name: str) -> Path:
+    """Node logs of one test, inside the run's ROS_LOG_DIR (in the work tree)."""
+    return Path(env["ROS_LOG_DIR"]) / name
+
+
 def _call(node: Any, client: Any, request: Any, timeout_s: float = 10.0) -> Any:
     import rclpy
 
@@ -37,7 +42,7 @@ def _call(node: Any, client: Any, request: Any, timeout_s: float = 10.0) -> Any:
 
 
 @pytest.fixture(scope="module")
-def suite(ros_graph: Any, ros_test_environment: dict[str, str], tmp_path_factory: pytest.TempPathFactory) -> Any:
+def suite(ros_graph: Any, ros_test_environment: dict[str, str]) -> Any:
     """The whole bringup running for a few seconds, then stopped with SIGINT; yields what was observed."""
     import rclpy
     from rcl_interfaces.srv import DescribeParameters, ListParameters
@@ -49,7 +54,7 @@ def suite(ros_graph: Any, ros_test_environment: dict[str, str], tmp_path_factory
         String, interfaces.ROBOT_DESCRIPTION.name, lambda m: descriptions.append(m.data), interfaces.LATCHED_QOS
     )
     # The suite joins the session's domain, where the observer lives.
-    run = SuiteRun(bringup, tmp_path_factory.mktemp("suite_logs"), int(ros_test_environment["ROS_DOMAIN_ID"]))
+    run = SuiteRun(bringup, _log_dir(ros_test_environment, "suite"), int(ros_test_environment["ROS_DOMAIN_ID"]))
     observed: dict[str, Any] = {"parameters": {}, "descriptors": {}}
     with run:
         observed["missing"] = wait_for_nodes(ros_graph, {n.name for n in bringup.nodes})
@@ -119,24 +124,24 @@ def test_robot_description_is_latched_and_complete(suite: Any) -> None:
         assert f'name="{joint}"' in urdf
 
 
-def test_bad_launch_parameter_is_refused_with_the_reason(ros_test_environment: dict[str, str], tmp_path: Path) -> None:
+def test_bad_launch_parameter_is_refused_with_the_reason(ros_test_environment: dict[str, str]) -> None:
     bad = NodeSpec("driver", "rh5_bringup", "driver_node", {"rate_hz": 0.0})
-    with SuiteRun(Bringup("", (bad,)), tmp_path) as run:
+    with SuiteRun(Bringup("", (bad,)), _log_dir(ros_test_environment, "bad_parameter")) as run:
         run.processes[0].process.wait(timeout=30)
     proc = run.processes[0]
     assert proc.process.returncode == 2
     assert "rate_hz" in proc.stderr_path.read_text()
 
 
-def test_runtime_parameter_change_is_validated(
-    ros_graph: Any, ros_test_environment: dict[str, str], tmp_path: Path
-) -> None:
+def test_runtime_parameter_change_is_validated(ros_graph: Any, ros_test_environment: dict[str, str]) -> None:
     from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
     from rcl_interfaces.srv import SetParameters
 
     bringup = load_bringup()
     only_driver = Bringup("", tuple(n for n in bringup.nodes if n.name == "driver"))
-    with SuiteRun(only_driver, tmp_path, int(ros_test_environment["ROS_DOMAIN_ID"])):
+    with SuiteRun(
+        only_driver, _log_dir(ros_test_environment, "set_parameter"), int(ros_test_environment["ROS_DOMAIN_ID"])
+    ):
         assert wait_for_nodes(ros_graph, {"driver"}) == set()
         client = ros_graph.create_client(SetParameters, "/driver/set_parameters")
 
