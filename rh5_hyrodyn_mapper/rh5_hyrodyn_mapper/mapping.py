@@ -1,0 +1,290 @@
+"""Whole-robot map between the 32 independent joints and the 32 actuator coordinates.
+
+The assembly is block diagonal (HyRoDyn's explicit loop-closure maps): every submechanism
+maps its own joints to its own actuators, and the rotary joints pass through unchanged.
+Every call takes one sample (shape (32,)) or a whole trajectory (shape (N, 32)) and works
+on all samples at once. Joint-space vectors are in names.JOINT_NAMES order, actuator-space
+vectors in names.ACTUATOR_NAMES order.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+from typing import Final, NamedTuple
+
+import numpy as np
+
+from rh5_hyrodyn_mapper.kinematics import build_submechanisms
+from rh5_hyrodyn_mapper.kinematics.base import FloatArray, KinematicsError, SubmechanismModel
+from rh5_msgs_py.names import ACTUATOR_INDEX, ACTUATOR_NAMES, JOINT_INDEX, NUM_ACTUATORS, NUM_JOINTS
+
+DEFAULT_MAX_CONDITION: Final = 1e6
+
+
+class ActuatorSample(NamedTuple):
+    """Actuator space: lengths [m] or angles [rad], their rates, accelerations, forces [N] or torques [Nm]."""
+
+    position: FloatArray
+    velocity: FloatArray | None = None
+    acceleration: FloatArray | None = None
+    effort: FloatArray | None = None
+
+
+class JointSample(NamedTuple):
+    """Joint space of the serial tree: angles [rad], rates, accelerations, torques [Nm]."""
+
+    position: FloatArray
+    velocity: FloatArray | None = None
+    acceleration: FloatArray | None = None
+    effort: FloatArray | None = None
+
+
+@dataclass(frozen=True)
+class Violation:
+    """One actuator limit exceeded at one sample."""
+
+    sample: int
+    actuator: str
+    kind: str  # "stroke", "velocity" or "force"
+    value: float
+    limit: float
+
+
+@dataclass(frozen=True)
+class LimitReport:
+    """Utilisation of every actuator limit at every sample (1.0 = at the limit) and the violations."""
+
+    stroke: FloatArray  # (N, 32): 0 at mid-stroke, 1 at either end
+    velocity: FloatArray  # (N, 32): |l_dot| / v_max
+    force: FloatArray  # (N, 32): |f| / f_max
+    violations: tuple[Violation, ...] = field(default=())
+
+    @property
+    def ok(self) -> bool:
+        """Whether every limit holds at every sample."""
+        return not self.violations
+
+    def peak(self) -> dict[str, dict[str, float]]:
+        """Highest utilisation per actuator and limit kind, for tables and plots."""
+        return {
+            name: {
+                "stroke": float(self.stroke[:, i].max(initial=0.0)),
+                "velocity": float(self.velocity[:, i].max(initial=0.0)),
+                "force": float(self.force[:, i].max(initial=0.0)),
+            }
+            for i, name in enumerate(ACTUATOR_NAMES)
+        }
+
+
+@dataclass(frozen=True)
+class _Block:
+    """A submechanism and where its joints and actuators sit in the whole-robot vectors (contiguous)."""
+
+    model: SubmechanismModel
+    joints: slice
+    actuators: slice
+
+
+def _contiguous(indices: list[int], what: str) -> slice:
+    """The slice covering ``indices``, which must be consecutive (names.SUBMECHANISMS guarantees it)."""
+    if indices != list(range(indices[0], indices[0] + len(indices))):
+        msg = f"{what}: indices {indices} are not consecutive"
+        raise ValueError(msg)
+    return slice(indices[0], indices[0] + len(indices))
+
+
+def _is_identity(model: SubmechanismModel) -> bool:
+    """A pass-through unit (rotary joint, unit-ratio transmission), recognised by what it computes."""
+    probe = np.linspace(-0.3, 0.4, model.dof)
+    return bool(
+        np.allclose(model.inverse(probe), probe, rtol=0, atol=1e-15)
+        and np.allclose(model.jacobian(probe), np.eye(model.dof), rtol=0, atol=1e-15)
+        and np.allclose(model.bias(probe, probe), 0.0, rtol=0, atol=1e-15)
+    )
+
+
+class RobotMapper:
+    """The whole-robot joint <-> actuator map; immutable, built once from the submechanism models."""
+
+    def __init__(
+        self, submechanisms: tuple[SubmechanismModel, ...] | None = None, max_condition: float = DEFAULT_MAX_CONDITION
+    ) -> None:
+        self.submechanisms = build_submechanisms() if submechanisms is None else submechanisms
+        self.max_condition = max_condition
+        blocks, identity_joints, identity_actuators = [], [], []
+        covered: list[int] = []
+        for model in self.submechanisms:
+            joints = [JOINT_INDEX[j] for j in model.joints]
+            actuators = [ACTUATOR_INDEX[a] for a in model.actuators]
+            covered.extend(joints)
+            if _is_identity(model):
+                identity_joints.extend(joints)
+                identity_actuators.extend(actuators)
+            else:
+                blocks.append(_Block(model, _contiguous(joints, model.name), _contiguous(actuators, model.name)))
+        self._blocks = tuple(blocks)
+        self._identity_joints = np.array(identity_joints, dtype=np.intp)
+        self._identity_actuators = np.array(identity_actuators, dtype=np.intp)
+        if sorted(covered) != list(range(NUM_JOINTS)):
+            msg = "the submechanisms do not cover every joint exactly once"
+            raise ValueError(msg)
+        limits = {name: np.zeros(NUM_ACTUATORS) for name in ("length_min", "length_max", "velocity_max", "force_max")}
+        for model in self.submechanisms:
+            idx = [ACTUATOR_INDEX[a] for a in model.actuators]
+            for name, values in limits.items():
+                values[idx] = getattr(model.limits, name)
+        for values in limits.values():
+            values.setflags(write=False)
+        self.length_min = limits["length_min"]
+        self.length_max = limits["length_max"]
+        self.velocity_max = limits["velocity_max"]
+        self.force_max = limits["force_max"]
+
+    @staticmethod
+    def _shaped(values: FloatArray | None, what: str, size: int) -> FloatArray | None:
+        if values is None:
+            return None
+        out = np.asarray(values, dtype=np.float64)
+        if out.shape[-1:] != (size,):
+            msg = f"{what}: expected {size} values per sample, got shape {out.shape}"
+            raise ValueError(msg)
+        return out
+
+    def to_actuators(
+        self,
+        q: FloatArray,
+        v: FloatArray | None = None,
+        a: FloatArray | None = None,
+        tau: FloatArray | None = None,
+    ) -> ActuatorSample:
+        """Map joint positions (and optionally velocities, accelerations, torques) to actuator space.
+
+        Accelerations need velocities (for the bias term J-dot q-dot). Raises SingularityError
+        (a KinematicsError) when a force map is asked for near a singular pose.
+        """
+        q = self._shaped(q, "q", NUM_JOINTS)
+        v, a, tau = (self._shaped(x, name, NUM_JOINTS) for x, name in ((v, "v"), (a, "a"), (tau, "tau")))
+        if a is not None and v is None:
+            msg = "accelerations need velocities (the bias term J-dot q-dot depends on them)"
+            raise ValueError(msg)
+        inputs = (q, v, a, tau)
+        outputs = tuple(None if x is None else np.empty(q.shape) for x in inputs)
+        for out, src in zip(outputs, inputs, strict=True):
+            if out is not None:
+                out[..., self._identity_actuators] = src[..., self._identity_joints]
+        l, ld, ldd, f = outputs
+        for block in self._blocks:
+            jj = block.joints
+            results = block.model.to_actuator_space(
+                q[..., jj],
+                None if v is None else v[..., jj],
+                None if a is None else a[..., jj],
+                None if tau is None else tau[..., jj],
+                self.max_condition,
+            )
+            for out, result in zip(outputs, results, strict=True):
+                if out is not None:
+                    out[..., block.actuators] = result
+        return ActuatorSample(l, ld, ldd, f)
+
+    def to_joints(
+        self,
+        l: FloatArray,
+        ld: FloatArray | None = None,
+        f: FloatArray | None = None,
+        q_guess: FloatArray | None = None,
+    ) -> JointSample:
+        """Map actuator readings (positions, optionally rates and forces) back to joint states.
+
+        ``q_guess`` warm-starts the Newton forward kinematics of the 2-DOF units (the previous
+        sample's joints at 1 kHz); without it they start cold. Raises ForwardKinematicsError.
+        """
+        l = self._shaped(l, "l", NUM_ACTUATORS)
+        ld = self._shaped(ld, "ld", NUM_ACTUATORS)
+        f = self._shaped(f, "f", NUM_ACTUATORS)
+        q_guess = self._shaped(q_guess, "q_guess", NUM_JOINTS)
+        inputs = (l, ld, f)
+        outputs = tuple(None if x is None else np.empty(l.shape) for x in inputs)
+        for out, src in zip(outputs, inputs, strict=True):
+            if out is not None:
+                out[..., self._identity_joints] = src[..., self._identity_actuators]
+        for block in self._blocks:
+            aa = block.actuators
+            results = block.model.to_joint_space(
+                l[..., aa],
+                None if ld is None else ld[..., aa],
+                None if f is None else f[..., aa],
+                None if q_guess is None else q_guess[..., block.joints],
+            )
+            for out, result in zip(outputs, results, strict=True):
+                if out is not None:
+                    out[..., block.joints] = result
+        q, v, tau = outputs
+        return JointSample(q, v, None, tau)
+
+    def limit_report(self, actuators: ActuatorSample) -> LimitReport:
+        """Stroke, velocity and force utilisation of every actuator at every sample, and every violation."""
+        l = np.atleast_2d(actuators.position)
+        n = l.shape[0]
+        half = 0.5 * (self.length_max - self.length_min)
+        stroke = np.abs(l - 0.5 * (self.length_max + self.length_min)) / half
+        velocity = (
+            np.zeros((n, NUM_ACTUATORS))
+            if actuators.velocity is None
+            else np.abs(np.atleast_2d(actuators.velocity)) / self.velocity_max
+        )
+        force = (
+            np.zeros((n, NUM_ACTUATORS))
+            if actuators.effort is None
+            else np.abs(np.atleast_2d(actuators.effort)) / self.force_max
+        )
+        violations: list[Violation] = []
+        checks = (
+            ("stroke", stroke, l, np.where(l > self.length_max, self.length_max, self.length_min)),
+            ("velocity", velocity, actuators.velocity, self.velocity_max),
+            ("force", force, actuators.effort, self.force_max),
+        )
+        for kind, utilisation, raw_values, raw_limit in checks:
+            if raw_values is None:
+                continue
+            values = np.atleast_2d(raw_values)
+            limit = np.broadcast_to(raw_limit, values.shape)
+            violations.extend(
+                Violation(int(k), ACTUATOR_NAMES[i], kind, float(values[k, i]), float(limit[k, i]))
+                for k, i in zip(*np.nonzero(utilisation > 1.0), strict=True)
+            )
+        violations.sort(key=lambda x: (x.sample, x.actuator, x.kind))
+        return LimitReport(stroke, velocity, force, tuple(violations))
+
+    def clamp(self, actuators: ActuatorSample) -> tuple[ActuatorSample, np.ndarray]:
+        """Clamp setpoints to the stroke, velocity and force limits; also say which actuators were clamped."""
+        l = np.clip(actuators.position, self.length_min, self.length_max)
+        clamped = l != actuators.position
+        ld, f = actuators.velocity, actuators.effort
+        if ld is not None:
+            ld_clamped = np.clip(ld, -self.velocity_max, self.velocity_max)
+            clamped |= ld_clamped != ld
+            ld = ld_clamped
+        if f is not None:
+            f_clamped = np.clip(f, -self.force_max, self.force_max)
+            clamped |= f_clamped != f
+            f = f_clamped
+        return ActuatorSample(l, ld, actuators.acceleration, f), clamped
+
+
+@functools.cache
+def robot_mapper() -> RobotMapper:
+    """The process-wide mapper of the RH5 model (built on first use)."""
+    return RobotMapper()
+
+
+__all__ = [
+    "ActuatorSample",
+    "JointSample",
+    "KinematicsError",
+    "LimitReport",
+    "RobotMapper",
+    "Violation",
+    "robot_mapper",
+]
