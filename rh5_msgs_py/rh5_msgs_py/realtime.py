@@ -1,0 +1,176 @@
+"""The 1 kHz machinery shared by the driver, the stabilizer and the simulated boards.
+
+rclpy timers drop ticks at 1 kHz here (design/ros2_wheels.md, 3d), so each periodic loop
+runs in its own thread on absolute deadlines in integer nanoseconds: advance the deadline
+by one period, sleep until shortly before it, then spin the rest (``time.sleep`` alone
+overshoots by 50-100 us). ROS callbacks hand data to the loop through a ``LatestValue``:
+one lock-protected slot that the loop reads without ever waiting for a writer.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Generic, TypeVar
+
+import numpy as np
+
+T = TypeVar("T")
+
+SPIN_NS = 150_000  # busy-wait this long before each deadline
+STATS_WINDOW = 1000  # cycles kept for the jitter percentiles (1 s at 1 kHz)
+
+
+class LatestValue(Generic[T]):
+    """One slot holding the newest value and when it was written; readers never block on writers."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._value: T | None = None
+        self._stamp_ns = 0
+        self._version = 0
+
+    def set(self, value: T, stamp_ns: int | None = None) -> None:
+        """Store ``value`` (an immutable snapshot), stamped now unless ``stamp_ns`` is given (monotonic ns)."""
+        stamp = time.monotonic_ns() if stamp_ns is None else stamp_ns
+        with self._lock:
+            self._value, self._stamp_ns = value, stamp
+            self._version += 1
+
+    def try_get(self) -> tuple[T | None, int, int]:
+        """(value, stamp_ns, version) without blocking; a busy slot yields (None, 0, -1) for this tick."""
+        if not self._lock.acquire(blocking=False):
+            return None, 0, -1
+        try:
+            return self._value, self._stamp_ns, self._version
+        finally:
+            self._lock.release()
+
+    def age_ns(self, now_ns: int | None = None) -> int | None:
+        """How old the stored value is (None when nothing was ever stored)."""
+        value, stamp, version = self.try_get()
+        if version <= 0 or value is None:
+            return None
+        return (time.monotonic_ns() if now_ns is None else now_ns) - stamp
+
+
+@dataclass(frozen=True)
+class LoopStats:
+    """Timing of a periodic loop over its latest window of cycles."""
+
+    cycles: int
+    rate_hz: float
+    period_p50_us: float
+    period_p99_us: float
+    period_max_us: float
+    jitter_p50_us: float
+    jitter_p99_us: float
+    jitter_max_us: float
+    deadline_misses: int
+
+    def as_dict(self) -> dict[str, float]:
+        """For diagnostics key/values and summaries."""
+        return {k: round(v, 2) if isinstance(v, float) else v for k, v in self.__dict__.items()}
+
+
+class LoopTimer:
+    """Records wake-up times of a periodic loop and turns them into LoopStats."""
+
+    def __init__(self, period_ns: int, window: int = STATS_WINDOW) -> None:
+        self.period_ns = period_ns
+        self._wakes = np.zeros(window + 1, dtype=np.int64)
+        self._count = 0
+        self.deadline_misses = 0
+
+    def record(self, wake_ns: int) -> None:
+        """Note one cycle's wake-up time (monotonic ns)."""
+        self._wakes[self._count % len(self._wakes)] = wake_ns
+        self._count += 1
+
+    def stats(self) -> LoopStats:
+        """Rate, period and jitter percentiles of the window (|period - nominal| is the jitter)."""
+        n = min(self._count, len(self._wakes))
+        if n < 2:
+            return LoopStats(self._count, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, self.deadline_misses)
+        start = self._count - n
+        order = [(start + k) % len(self._wakes) for k in range(n)]
+        wakes = self._wakes[order]
+        periods = np.diff(wakes) / 1e3
+        jitter = np.abs(periods - self.period_ns / 1e3)
+        rate = (n - 1) / ((wakes[-1] - wakes[0]) / 1e9)
+        p50, p99 = np.percentile(periods, [50, 99])
+        j50, j99 = np.percentile(jitter, [50, 99])
+        return LoopStats(
+            self._count,
+            float(rate),
+            float(p50),
+            float(p99),
+            float(periods.max()),
+            float(j50),
+            float(j99),
+            float(jitter.max()),
+            self.deadline_misses,
+        )
+
+
+class DeadlineLoop:
+    """Calls ``step(now_ns, period_ns)`` every period from a dedicated thread, on absolute deadlines.
+
+    A step that overruns its deadline is counted as a deadline miss; the schedule then
+    skips the lost ticks instead of bursting to catch up. ``stop`` is idempotent.
+    """
+
+    def __init__(self, rate_hz: float, step: Callable[[int, int], None], name: str = "rh5-loop") -> None:
+        if not rate_hz > 0:
+            msg = f"rate_hz must be positive, got {rate_hz}"
+            raise ValueError(msg)
+        self.period_ns = round(1e9 / rate_hz)
+        self._step = step
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        self.timer = LoopTimer(self.period_ns)
+        self.error: BaseException | None = None
+
+    def start(self) -> None:
+        """Start the loop thread."""
+        self._thread.start()
+
+    def stop(self, timeout_s: float = 2.0) -> None:
+        """Ask the loop to stop and wait for it."""
+        self._stop.set()
+        if self._thread.is_alive() and threading.current_thread() is not self._thread:
+            self._thread.join(timeout_s)
+
+    @property
+    def running(self) -> bool:
+        """Whether the loop thread is alive."""
+        return self._thread.is_alive()
+
+    def stats(self) -> LoopStats:
+        """Timing of the latest cycles."""
+        return self.timer.stats()
+
+    def _run(self) -> None:
+        period = self.period_ns
+        deadline = time.monotonic_ns() + period
+        try:
+            while not self._stop.is_set():
+                remaining = deadline - time.monotonic_ns()
+                if remaining > SPIN_NS:
+                    time.sleep((remaining - SPIN_NS) / 1e9)
+                while time.monotonic_ns() < deadline:
+                    pass
+                now = time.monotonic_ns()
+                self.timer.record(now)
+                self._step(now, period)
+                deadline += period
+                finished = time.monotonic_ns()
+                if finished > deadline:
+                    missed = (finished - deadline) // period + 1
+                    self.timer.deadline_misses += int(missed)
+                    deadline += int(missed) * period
+        except BaseException as err:  # surfaced to the owner, which decides what a dead loop means
+            self.error = err
+            raise

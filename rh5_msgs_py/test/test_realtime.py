@@ -1,0 +1,88 @@
+"""The shared 1 kHz machinery: latest-value slot, loop statistics, the deadline loop."""
+
+from __future__ import annotations
+
+import itertools
+import threading
+import time
+
+import pytest
+
+from rh5_msgs_py.realtime import DeadlineLoop, LatestValue, LoopTimer
+
+
+def test_latest_value_keeps_the_newest_and_its_stamp() -> None:
+    slot: LatestValue[tuple[int, ...]] = LatestValue()
+    assert slot.try_get() == (None, 0, 0)
+    assert slot.age_ns() is None
+    slot.set((1, 2), stamp_ns=100)
+    slot.set((3, 4), stamp_ns=250)
+    assert slot.try_get() == ((3, 4), 250, 2)
+    assert slot.age_ns(now_ns=1250) == 1000
+
+
+def test_latest_value_reader_never_blocks_on_a_writer() -> None:
+    slot: LatestValue[int] = LatestValue()
+    slot.set(7)
+    with slot._lock:  # a writer in the middle of set()
+        start = time.perf_counter()
+        assert slot.try_get() == (None, 0, -1)
+        assert time.perf_counter() - start < 0.01
+
+
+def test_loop_timer_statistics_from_synthetic_wake_ups() -> None:
+    timer = LoopTimer(period_ns=1_000_000, window=10)
+    wakes = [0, 1_000_000, 2_000_000, 3_050_000, 4_000_000, 5_000_000]
+    for wake in wakes:
+        timer.record(wake)
+    stats = timer.stats()
+    assert stats.cycles == 6
+    assert stats.rate_hz == pytest.approx(1000.0)
+    assert stats.period_max_us == pytest.approx(1050.0)
+    assert stats.jitter_max_us == pytest.approx(50.0)
+    assert stats.jitter_p50_us == pytest.approx(0.0)
+
+
+def test_loop_timer_window_keeps_only_the_latest_cycles() -> None:
+    timer = LoopTimer(period_ns=1_000_000, window=3)
+    for k in range(10):
+        timer.record(k * 2_000_000 if k < 6 else 12_000_000 + (k - 6) * 1_000_000)
+    assert timer.stats().rate_hz == pytest.approx(1000.0)
+
+
+def test_deadline_loop_runs_at_its_rate_with_now_and_period() -> None:
+    calls: list[tuple[int, int]] = []
+    loop = DeadlineLoop(1000.0, lambda now, period: calls.append((now, period)))
+    loop.start()
+    time.sleep(0.5)
+    loop.stop()
+    loop.stop()  # idempotent
+    assert not loop.running
+    assert 450 <= len(calls) <= 510
+    assert {period for _, period in calls} == {1_000_000}
+    assert loop.stats().rate_hz == pytest.approx(1000.0, rel=0.02)
+
+
+def test_overrunning_steps_are_counted_and_skipped_not_burst() -> None:
+    done = threading.Event()
+    calls: list[int] = []
+
+    def slow(now: int, _period: int) -> None:
+        calls.append(now)
+        if len(calls) == 5:
+            time.sleep(0.0105)  # overrun by ten and a half periods
+        if len(calls) >= 20:
+            done.set()
+
+    loop = DeadlineLoop(1000.0, slow)
+    loop.start()
+    assert done.wait(2.0)
+    loop.stop()
+    assert loop.stats().deadline_misses >= 10
+    gaps = [b - a for a, b in itertools.pairwise(calls[5:13])]
+    assert min(gaps) > 500_000  # no catch-up burst after the overrun
+
+
+def test_rate_must_be_positive() -> None:
+    with pytest.raises(ValueError, match="rate_hz must be positive"):
+        DeadlineLoop(0.0, lambda _now, _period: None)
