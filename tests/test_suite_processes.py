@@ -8,6 +8,7 @@ from typing import Any
 
 import pytest
 
+from rh5_bringup.cli import call_trigger
 from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, load_bringup, wait_for_nodes
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.names import JOINT_NAMES
@@ -72,6 +73,7 @@ def suite(ros_graph: Any, ros_test_environment: dict[str, str]) -> Any:
                 DescribeParameters.Request(names=spec_names),
             )
             observed["descriptors"][name] = {d.name: d for d in described.descriptors}
+        observed["start"] = call_trigger(ros_graph, "/stabilizer/start")
         end = time.monotonic() + RUN_SECONDS
         while time.monotonic() < end:
             rclpy.spin_once(ros_graph, timeout_sec=0.05)
@@ -107,6 +109,7 @@ def test_node_exits_cleanly_on_sigint_with_a_summary(suite: Any, name: str) -> N
 
 def test_the_nodes_talk_to_each_other(suite: Any) -> None:
     """planner -> stabilizer -> mapper -> driver -> mapper: each saw its input; the recorder saw them all."""
+    assert suite["start"][0], suite["start"][1]
     seen = {name: s["seen"] for name, s in suite["summaries"].items()}
     assert seen["stabilizer"].get("planned_trajectory", 0) >= 1
     assert seen["mapper"].get("joint_commands", 0) >= 10

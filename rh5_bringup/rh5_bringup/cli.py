@@ -10,6 +10,7 @@ import time
 from datetime import datetime
 from pathlib import Path
 from types import FrameType
+from typing import Any
 
 from rh5_bringup.launcher import Bringup, SuiteRun, load_bringup, wait_for_nodes
 
@@ -38,7 +39,31 @@ def format_report(run: SuiteRun, exit_codes: dict[str, int]) -> str:
     return "\n".join(lines)
 
 
-def up(bringup: Bringup, duration_s: float | None, log_root: Path) -> int:
+def call_trigger(node: Any, service: str, timeout_s: float = 10.0) -> tuple[bool, str]:
+    """Call a std_srvs/Trigger service, retrying while it refuses, until it succeeds or time runs out."""
+    import rclpy  # noqa: PLC0415
+    from std_srvs.srv import Trigger  # noqa: PLC0415
+
+    client = node.create_client(Trigger, service)
+    deadline = time.monotonic() + timeout_s
+    answer = (False, f"{service} not available")
+    try:
+        while time.monotonic() < deadline:
+            if not client.wait_for_service(timeout_sec=0.2):
+                continue
+            future = client.call_async(Trigger.Request())
+            rclpy.spin_until_future_complete(node, future, timeout_sec=max(0.1, deadline - time.monotonic()))
+            if future.done():
+                answer = (future.result().success, future.result().message)
+                if answer[0]:
+                    return answer
+            time.sleep(0.2)
+        return answer
+    finally:
+        node.destroy_client(client)
+
+
+def up(bringup: Bringup, duration_s: float | None, log_root: Path, start: bool = False) -> int:
     """Start the suite, wait until every node is in the graph, run, stop cleanly and report."""
     run = SuiteRun(bringup, _run_dir(log_root))
     stop_requested = False
@@ -63,6 +88,9 @@ def up(bringup: Bringup, duration_s: float | None, log_root: Path) -> int:
             print(f"rh5 up: never appeared in the ROS graph: {sorted(missing)}", file=sys.stderr)
         else:
             print(f"rh5 up: {len(names)} nodes running: {', '.join(sorted(names))}", flush=True)
+            if start:
+                _, message = call_trigger(observer, f"{namespace.rstrip('/')}/stabilizer/start")
+                print(f"rh5 up: stabilizer start: {message}", flush=True)
         deadline = None if duration_s is None else time.monotonic() + duration_s
         while not stop_requested and not run.exited() and (deadline is None or time.monotonic() < deadline):
             time.sleep(0.05)
@@ -88,6 +116,7 @@ def build_parser() -> argparse.ArgumentParser:
     up_parser.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
     up_parser.add_argument("--bringup", type=Path, default=None, help="bringup description YAML")
     up_parser.add_argument("--log-dir", type=Path, default=DEFAULT_LOG_ROOT, help="where node logs go")
+    up_parser.add_argument("--start", action="store_true", help="start the stabilizer's playback once up")
     return parser
 
 
@@ -99,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
             print("rh5 up: --duration must be positive", file=sys.stderr)
             return 2
         bringup = load_bringup(args.bringup).with_parameters("sim_hardware", mode=args.sim)
-        return up(bringup, args.duration, args.log_dir)
+        return up(bringup, args.duration, args.log_dir, start=args.start)
     return 2
 
 

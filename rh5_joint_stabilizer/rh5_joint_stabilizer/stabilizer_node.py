@@ -1,45 +1,228 @@
-"""The stabilizer node: plays the planned trajectory and stabilises it in joint space.
+"""The stabilizer node: plays the planned motion at 1 kHz and stabilises it in joint space.
 
-At this stage it holds the first sample of the latest ``planned_trajectory`` and publishes
-it on ``joint_commands`` from a 100 Hz timer; the dedicated 1 kHz loop with PD +
-feed-forward, ramp-in and the safety rules replaces this with the stabilizer issue.
+A dedicated loop thread (rh5_msgs_py.realtime.DeadlineLoop) runs StabilizerCore every
+millisecond and publishes ``joint_commands`` in every active state; ROS callbacks only
+validate inputs and hand them over through lock-protected latest-value slots. Services
+``~/start``, ``~/stop`` and ``~/hold`` answer with the reason when they refuse.
 """
 
 from __future__ import annotations
 
-from typing import Any
+import time
+from collections import deque
+from typing import Any, Final
 
+import numpy as np
+from std_srvs.srv import Trigger
+
+from rh5_hyrodyn_mapper.model import joint_limits
+from rh5_joint_stabilizer.balance import AnkleBalanceCorrection, ankle_axes_world
+from rh5_joint_stabilizer.controller import Measurement, SafetyLimits, StabilizerCore, State, load_gains
+from rh5_joint_stabilizer.reference import PlannedTrajectory, TrajectoryRejectedError, validate_trajectory
 from rh5_msgs_py import interfaces
-from rh5_msgs_py.conversions import joint_state_to_msg, joint_trajectory_from_msg
-from rh5_msgs_py.names import JOINT_NAMES
+from rh5_msgs_py.conversions import JointStateCodec, Level, Status, diagnostics_to_msg, joint_trajectory_from_msg
+from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
+from rh5_msgs_py.realtime import DeadlineLoop, LatestValue
+from rh5_msgs_py.trajectory_file import TrajectoryFileError, load_trajectory
 
-HOLD_PERIOD_S = 0.01
+DIAGNOSTICS_PERIOD_S: Final = 1.0
+BALANCE_GAIN: Final = 0.5
+BALANCE_MAX_CORRECTION: Final = 0.1  # rad
+
+
+class TrackingWindow:
+    """Tracking errors of the last second, for RMS and max per joint on /diagnostics."""
+
+    def __init__(self, size: int = 1000) -> None:
+        self._errors = np.zeros((size, NUM_JOINTS))
+        self._count = 0
+
+    def add(self, error: np.ndarray) -> None:
+        """Record one tick's tracking error."""
+        self._errors[self._count % len(self._errors)] = error
+        self._count += 1
+
+    def rms_and_max(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per-joint RMS and max |error| over the window (zeros when empty)."""
+        window = self._errors[: min(self._count, len(self._errors))]
+        if not len(window):
+            return np.zeros(NUM_JOINTS), np.zeros(NUM_JOINTS)
+        return np.sqrt(np.mean(window**2, axis=0)), np.max(np.abs(window), axis=0)
 
 
 class StabilizerNode(SuiteNode):
-    """Holds the planned start pose until playback exists."""
+    """ROS wiring around StabilizerCore and its 1 kHz loop."""
 
     def __init__(self) -> None:
         super().__init__(interfaces.STABILIZER_NODE, "rh5_joint_stabilizer", "params/stabilizer.yaml")
-        self._hold: Any = None
+        params = self.params
+        limits = joint_limits()
+        self.velocity_limits = np.asarray(limits.velocity_max)
+        self.balance = None
+        if params["balance_correction"]:
+            self.balance = AnkleBalanceCorrection(
+                BALANCE_GAIN, BALANCE_MAX_CORRECTION, int(params["state_timeout_s"] * 1e9) * 10, ankle_axes_world()
+            )
+        self.events: deque[str] = deque(maxlen=50)
+        self.core = StabilizerCore(
+            load_gains(params["gains_file"] or None),
+            np.asarray(limits.torque_max),
+            ramp_max_velocity=params["ramp_max_velocity"],
+            ramp_max_acceleration=params["ramp_max_acceleration"],
+            safety=SafetyLimits(int(params["state_timeout_s"] * 1e9), params["max_tracking_error_rad"]),
+            on_event=self._log_event,
+            correction=self.balance,
+        )
+        self.measurement: LatestValue[Measurement] = LatestValue()
+        self.tracking = TrackingWindow()
+        self._state_codec = JointStateCodec(JOINT_NAMES, what="joint_states")
+        self._command_codec = JointStateCodec(JOINT_NAMES)
         self._publish_commands = self.advertise(interfaces.JOINT_COMMANDS)
+        self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
         self.subscribe(interfaces.PLANNED_TRAJECTORY, self._on_trajectory)
-        self.subscribe(interfaces.JOINT_STATES)
-        self.create_timer(HOLD_PERIOD_S, self._tick)
+        self.subscribe(interfaces.JOINT_STATES, self._on_joint_states)
+        self.subscribe(interfaces.DRIVER_ESTOP, self._on_estop)
+        if self.balance is not None:
+            self.subscribe(interfaces.SIM_BASE_POSE, self._on_base_pose)
+        self.create_service(Trigger, interfaces.START_SERVICE, self._on_start)
+        self.create_service(Trigger, interfaces.STOP_SERVICE, self._on_stop)
+        self.create_service(Trigger, interfaces.HOLD_SERVICE, self._on_hold)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
+        if params["trajectory_file"]:
+            self._load_file(params["trajectory_file"])
+        self.loop = DeadlineLoop(params["rate_hz"], self._tick, name="stabilizer-1kHz")
+        self.context.on_shutdown(self.loop.stop)  # SIGINT shuts the context down before the node is destroyed
+        self.loop.start()
+
+    def _log_event(self, text: str) -> None:
+        self.events.append(text)
+        self.get_logger().info(text)
+
+    # --- inputs ------------------------------------------------------------------------------------------------------
+
+    def _accept(self, trajectory: PlannedTrajectory, source: str) -> None:
+        ok, reason = self.core.load(trajectory)
+        if not ok:
+            self.get_logger().warning(f"trajectory from {source} not loaded: {reason}")
+
+    def _load_file(self, path: str) -> None:
+        try:
+            data = load_trajectory(path)
+            trajectory = validate_trajectory(
+                JOINT_NAMES,
+                data.times,
+                data.joint_positions(),
+                data.joint_velocities(),
+                self._file_efforts(data),
+                velocity_limits=self.velocity_limits,
+            )
+        except (OSError, TrajectoryFileError, TrajectoryRejectedError) as err:
+            self.get_logger().error(f"trajectory file {path} rejected: {err}")
+            return
+        self._accept(trajectory, path)
+
+    @staticmethod
+    def _file_efforts(data: Any) -> np.ndarray:
+        """Joint torques per knot from the file's controls (the last knot repeats the last control)."""
+        controls = np.asarray(data.controls)
+        if len(controls) == len(data.times):
+            return controls
+        return np.vstack([controls, controls[-1:]]) if len(controls) else np.zeros((len(data.times), NUM_JOINTS))
 
     def _on_trajectory(self, msg: Any) -> None:
-        trajectory = joint_trajectory_from_msg(msg, JOINT_NAMES)
-        if len(trajectory.times) == 0:
-            self.get_logger().warning("ignoring an empty planned_trajectory")
+        try:
+            arrays = joint_trajectory_from_msg(msg, allow_extra=True)
+            trajectory = validate_trajectory(
+                arrays.joint_names,
+                arrays.times,
+                arrays.positions,
+                arrays.velocities,
+                arrays.efforts,
+                velocity_limits=self.velocity_limits,
+            )
+        except (ValueError, TrajectoryRejectedError) as err:
+            self.get_logger().error(f"planned_trajectory rejected: {err}")
+            self.events.append(f"trajectory rejected: {err}")
             return
-        self._hold = trajectory.positions[0].copy()
+        self._accept(trajectory, "planned_trajectory")
 
-    def _tick(self) -> None:
-        if self._hold is None:
+    def _on_joint_states(self, msg: Any) -> None:
+        try:
+            position, velocity, _ = self._state_codec.decode(msg)
+        except ValueError as err:
+            self.get_logger().warning(f"joint_states ignored: {err}", throttle_duration_sec=1.0)
             return
-        now_ns = self.get_clock().now().nanoseconds
-        self._publish_commands(joint_state_to_msg(JOINT_NAMES, self._hold, stamp_ns=now_ns))
+        if position is None or not np.isfinite(position).all():
+            return
+        velocity = np.zeros(NUM_JOINTS) if velocity is None or not np.isfinite(velocity).all() else velocity
+        self.measurement.set(Measurement(position, velocity, time.monotonic_ns()))
+
+    def _on_estop(self, msg: Any) -> None:
+        self.core.set_estop(bool(msg.data))
+
+    def _on_base_pose(self, msg: Any) -> None:
+        o = msg.pose.orientation
+        self.balance.base_orientation.set(np.array([o.x, o.y, o.z, o.w]))
+
+    # --- services ----------------------------------------------------------------------------------------------------
+
+    def _on_start(self, _request: Any, response: Any) -> Any:
+        measurement, _, _ = self.measurement.try_get()
+        response.success, response.message = self.core.request_start(measurement)
+        return response
+
+    def _on_stop(self, _request: Any, response: Any) -> Any:
+        response.success, response.message = self.core.request_stop()
+        return response
+
+    def _on_hold(self, _request: Any, response: Any) -> Any:
+        response.success, response.message = self.core.request_hold()
+        return response
+
+    # --- the 1 kHz loop ----------------------------------------------------------------------------------------------
+
+    def _tick(self, now_ns: int, period_ns: int) -> None:
+        measurement, _, _ = self.measurement.try_get()
+        command = self.core.update(now_ns, period_ns, measurement)
+        if command is None:
+            return
+        self.tracking.add(self.core.tracking_error)
+        self._publish_commands(
+            self._command_codec.encode(command.position, command.velocity, command.effort, stamp_ns=time.time_ns())
+        )
+
+    # --- reporting ---------------------------------------------------------------------------------------------------
+
+    def _publish_status(self) -> None:
+        rms, peak = self.tracking.rms_and_max()
+        values: dict[str, object] = {"state": self.core.state.value, "reason": self.core.last_reason}
+        values.update({f"loop.{k}": v for k, v in self.loop.stats().as_dict().items()})
+        values.update({f"rms_error.{j}": round(float(e), 6) for j, e in zip(JOINT_NAMES, rms, strict=True)})
+        values.update({f"max_error.{j}": round(float(e), 6) for j, e in zip(JOINT_NAMES, peak, strict=True)})
+        if self.balance is not None:
+            values["balance_correction_active"] = self.balance.active
+        level = (
+            Level.WARN if self.core.state == State.HOLDING and "requested" not in self.core.last_reason else Level.OK
+        )
+        if self.loop.error is not None:
+            level, values["loop_error"] = Level.ERROR, repr(self.loop.error)
+        status = Status("rh5/stabilizer", level, self.core.last_reason or self.core.state.value, values, "rh5")
+        self._publish_diagnostics(diagnostics_to_msg([status], stamp_ns=self.get_clock().now().nanoseconds))
+
+    def summary(self) -> dict[str, Any]:
+        """Adds the state, the loop timing and the recent events to the base summary."""
+        return {
+            **super().summary(),
+            "state": self.core.state.value,
+            "loop": self.loop.stats().as_dict(),
+            "events": list(self.events)[-10:],
+        }
+
+    def destroy_node(self) -> None:
+        """Stop the loop thread before the node goes away."""
+        self.loop.stop()
+        super().destroy_node()
 
 
 def main(args: list[str] | None = None) -> None:

@@ -61,6 +61,8 @@ ACTUATOR_STATES: Final = Topic("actuator_states", "sensor_msgs/msg/JointState", 
 SIM_BASE_POSE: Final = Topic("sim/base_pose", "geometry_msgs/msg/PoseStamped", STREAM_QOS)
 SIM_WRENCH_LEFT: Final = Topic("sim/wrench/left_foot", "geometry_msgs/msg/WrenchStamped", STREAM_QOS)
 SIM_WRENCH_RIGHT: Final = Topic("sim/wrench/right_foot", "geometry_msgs/msg/WrenchStamped", STREAM_QOS)
+DRIVER_ESTOP: Final = Topic("driver/estopped", "std_msgs/msg/Bool", LATCHED_QOS)
+"""The driver's emergency-stop latch, published on every change (the stabilizer stops while it is set)."""
 DIAGNOSTICS: Final = Topic("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", EVENT_QOS)
 
 ALL_TOPICS: Final[tuple[Topic, ...]] = (
@@ -77,6 +79,7 @@ ALL_TOPICS: Final[tuple[Topic, ...]] = (
     SIM_BASE_POSE,
     SIM_WRENCH_LEFT,
     SIM_WRENCH_RIGHT,
+    DRIVER_ESTOP,
     DIAGNOSTICS,
 )
 """Every topic the suite publishes: what the recorder records by default."""

@@ -14,6 +14,7 @@ from collections.abc import Callable
 from typing import Any
 
 import rclpy
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.publisher import Publisher
@@ -59,7 +60,12 @@ class SuiteNode(Node):
         publisher: Publisher = self.create_publisher(message_class(topic.type), topic.name, topic.qos)
 
         def publish(msg: Any) -> None:
-            publisher.publish(msg)
+            try:
+                publisher.publish(msg)
+            except RCLError:
+                if self.context.ok():
+                    raise
+                return  # a loop thread publishing while SIGINT shuts the context down: the node is stopping
             self.sent[topic.name] += 1
 
         return publish
