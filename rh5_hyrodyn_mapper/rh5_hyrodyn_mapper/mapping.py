@@ -10,6 +10,8 @@ vectors in names.ACTUATOR_NAMES order.
 from __future__ import annotations
 
 import functools
+import operator
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Final, NamedTuple
 
@@ -94,6 +96,14 @@ def _contiguous(indices: list[int], what: str) -> slice:
     return slice(indices[0], indices[0] + len(indices))
 
 
+def _list_gather(sources: list[int]) -> Callable[[list[float]], list[float]] | None:
+    """out[i] = values[sources[i]] on Python lists; None for the identity (the lists are then used in place)."""
+    if sources == list(range(len(sources))):
+        return None
+    take = operator.itemgetter(*sources)
+    return lambda values: list(take(values))
+
+
 def _is_identity(model: SubmechanismModel) -> bool:
     """A pass-through unit (rotary joint, unit-ratio transmission), recognised by what it computes."""
     probe = np.linspace(-0.3, 0.4, model.dof)
@@ -129,6 +139,22 @@ class RobotMapper:
         if sorted(covered) != list(range(NUM_JOINTS)):
             msg = "the submechanisms do not cover every joint exactly once"
             raise ValueError(msg)
+        # Single-sample path on Python lists: each block's fused float map; the pass-through values are gathered
+        # once (index maps actuator <- joint and joint <- actuator). Block entries map to their own block's entries,
+        # so on RH5 (same order on both sides) both maps are the identity and the input lists become the outputs.
+        self._single_blocks = tuple(
+            (b.model.to_actuator_space_floats, b.model.to_joint_space_floats, b.joints, b.actuators) for b in blocks
+        )
+        actuator_sources, joint_sources = list(range(NUM_ACTUATORS)), list(range(NUM_JOINTS))
+        for joint, actuator in zip(identity_joints, identity_actuators, strict=True):
+            actuator_sources[actuator], joint_sources[joint] = joint, actuator
+        for b in blocks:  # their entries are overwritten by the block's results
+            for joint, actuator in zip(
+                range(b.joints.start, b.joints.stop), range(b.actuators.start, b.actuators.stop), strict=True
+            ):
+                actuator_sources[actuator], joint_sources[joint] = joint, actuator
+        self._actuators_from_joints = _list_gather(actuator_sources)
+        self._joints_from_actuators = _list_gather(joint_sources)
         limits = {name: np.zeros(NUM_ACTUATORS) for name in ("length_min", "length_max", "velocity_max", "force_max")}
         for model in self.submechanisms:
             idx = [ACTUATOR_INDEX[a] for a in model.actuators]
@@ -146,7 +172,8 @@ class RobotMapper:
         if values is None:
             return None
         out = np.asarray(values, dtype=np.float64)
-        if out.shape[-1:] != (size,):
+        shape = out.shape
+        if not shape or shape[-1] != size:
             msg = f"{what}: expected {size} values per sample, got shape {out.shape}"
             raise ValueError(msg)
         return out
@@ -163,11 +190,16 @@ class RobotMapper:
         Accelerations need velocities (for the bias term J-dot q-dot). Raises SingularityError
         (a KinematicsError) when a force map is asked for near a singular pose.
         """
-        q = self._shaped(q, "q", NUM_JOINTS)
-        v, a, tau = (self._shaped(x, name, NUM_JOINTS) for x, name in ((v, "v"), (a, "a"), (tau, "tau")))
+        shaped = self._shaped
+        q = shaped(q, "q", NUM_JOINTS)
+        v = None if v is None else shaped(v, "v", NUM_JOINTS)
+        a = None if a is None else shaped(a, "a", NUM_JOINTS)
+        tau = None if tau is None else shaped(tau, "tau", NUM_JOINTS)
         if a is not None and v is None:
             msg = "accelerations need velocities (the bias term J-dot q-dot depends on them)"
             raise ValueError(msg)
+        if q.ndim == 1 and (v is None or v.ndim == 1) and (a is None or a.ndim == 1) and (tau is None or tau.ndim == 1):
+            return self._to_actuators_single(q, v, a, tau)
         inputs = (q, v, a, tau)
         outputs = tuple(None if x is None else np.empty(q.shape) for x in inputs)
         for out, src in zip(outputs, inputs, strict=True):
@@ -188,6 +220,54 @@ class RobotMapper:
                     out[..., block.actuators] = result
         return ActuatorSample(l, ld, ldd, f)
 
+    def _to_actuators_single(
+        self, q: FloatArray, v: FloatArray | None, a: FloatArray | None, tau: FloatArray | None
+    ) -> ActuatorSample:
+        """``to_actuators`` for one sample (every input of shape (32,)): Python lists, one array per output."""
+        max_condition = self.max_condition
+        qs = q.tolist()
+        vs = None if v is None else v.tolist()
+        acc = None if a is None else a.tolist()
+        ts = None if tau is None else tau.tolist()
+        gather = self._actuators_from_joints
+        if gather is None:  # outputs overwrite the inputs' lists block by block (each block reads its slice first)
+            l, ld, ldd, f = qs, vs, acc, ts
+        else:
+            l = gather(qs)
+            ld = None if vs is None else gather(vs)
+            ldd = None if acc is None else gather(acc)
+            f = None if ts is None else gather(ts)
+        blocks = self._single_blocks
+        if vs is not None and ts is not None:  # the common calls: (q, v, tau) and (q, v, a, tau)
+            if acc is None:
+                for fused, _, jj, aa in blocks:
+                    l[aa], ld[aa], _, f[aa] = fused(qs[jj], vs[jj], None, ts[jj], max_condition)
+            else:
+                for fused, _, jj, aa in blocks:
+                    l[aa], ld[aa], ldd[aa], f[aa] = fused(qs[jj], vs[jj], acc[jj], ts[jj], max_condition)
+        else:
+            for fused, _, jj, aa in blocks:
+                rl, rld, rldd, rf = fused(
+                    qs[jj],
+                    None if vs is None else vs[jj],
+                    None if acc is None else acc[jj],
+                    None if ts is None else ts[jj],
+                    max_condition,
+                )
+                l[aa] = rl
+                if ld is not None:
+                    ld[aa] = rld
+                    if ldd is not None:
+                        ldd[aa] = rldd
+                if f is not None:
+                    f[aa] = rf
+        return ActuatorSample(
+            _vector(l, NUM_ACTUATORS),
+            _vector(ld, NUM_ACTUATORS),
+            _vector(ldd, NUM_ACTUATORS),
+            _vector(f, NUM_ACTUATORS),
+        )
+
     def to_joints(
         self,
         l: FloatArray,
@@ -200,10 +280,18 @@ class RobotMapper:
         ``q_guess`` warm-starts the Newton forward kinematics of the 2-DOF units (the previous
         sample's joints at 1 kHz); without it they start cold. Raises ForwardKinematicsError.
         """
-        l = self._shaped(l, "l", NUM_ACTUATORS)
-        ld = self._shaped(ld, "ld", NUM_ACTUATORS)
-        f = self._shaped(f, "f", NUM_ACTUATORS)
-        q_guess = self._shaped(q_guess, "q_guess", NUM_JOINTS)
+        shaped = self._shaped
+        l = shaped(l, "l", NUM_ACTUATORS)
+        ld = None if ld is None else shaped(ld, "ld", NUM_ACTUATORS)
+        f = None if f is None else shaped(f, "f", NUM_ACTUATORS)
+        q_guess = None if q_guess is None else shaped(q_guess, "q_guess", NUM_JOINTS)
+        if (
+            l.ndim == 1
+            and (ld is None or ld.ndim == 1)
+            and (f is None or f.ndim == 1)
+            and (q_guess is None or q_guess.ndim == 1)
+        ):
+            return self._to_joints_single(l, ld, f, q_guess)
         inputs = (l, ld, f)
         outputs = tuple(None if x is None else np.empty(l.shape) for x in inputs)
         for out, src in zip(outputs, inputs, strict=True):
@@ -222,6 +310,40 @@ class RobotMapper:
                     out[..., block.joints] = result
         q, v, tau = outputs
         return JointSample(q, v, None, tau)
+
+    def _to_joints_single(
+        self, l: FloatArray, ld: FloatArray | None, f: FloatArray | None, q_guess: FloatArray | None
+    ) -> JointSample:
+        """``to_joints`` for one sample (every input of shape (32,)): Python lists, one array per output."""
+        ls = l.tolist()
+        lds = None if ld is None else ld.tolist()
+        fs = None if f is None else f.tolist()
+        guess = None if q_guess is None else q_guess.tolist()
+        gather = self._joints_from_actuators
+        if gather is None:  # outputs overwrite the inputs' lists block by block (each block reads its slice first)
+            q, v, tau = ls, lds, fs
+        else:
+            q = gather(ls)
+            v = None if lds is None else gather(lds)
+            tau = None if fs is None else gather(fs)
+        blocks = self._single_blocks
+        if lds is not None and fs is not None and guess is not None:  # the node's call
+            for _, fused, jj, aa in blocks:
+                q[jj], v[jj], tau[jj] = fused(ls[aa], lds[aa], fs[aa], guess[jj])
+        else:
+            for _, fused, jj, aa in blocks:
+                rq, rv, rtau = fused(
+                    ls[aa],
+                    None if lds is None else lds[aa],
+                    None if fs is None else fs[aa],
+                    None if guess is None else guess[jj],
+                )
+                q[jj] = rq
+                if v is not None:
+                    v[jj] = rv
+                if tau is not None:
+                    tau[jj] = rtau
+        return JointSample(_vector(q, NUM_JOINTS), _vector(v, NUM_JOINTS), None, _vector(tau, NUM_JOINTS))
 
     def limit_report(self, actuators: ActuatorSample) -> LimitReport:
         """Stroke, velocity and force utilisation of every actuator at every sample, and every violation."""
@@ -271,6 +393,16 @@ class RobotMapper:
             clamped |= f_clamped != f
             f = f_clamped
         return ActuatorSample(l, ld, actuators.acceleration, f), clamped
+
+
+def _vector(values: Sequence[float] | None, size: int) -> FloatArray | None:
+    """The float64 array of one sample's list (None stays None); a block that returned a wrong count shows here."""
+    if values is None:
+        return None
+    if len(values) != size:
+        msg = f"a submechanism returned a wrong number of values ({len(values)} instead of {size} in all)"
+        raise ValueError(msg)
+    return np.array(values, dtype=np.float64)
 
 
 @functools.cache

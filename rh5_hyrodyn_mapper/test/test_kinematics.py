@@ -604,3 +604,282 @@ def test_geometry_file_cites_its_values() -> None:
         assert g["type"] == models()[name].kind
         assert {"parent", "child", "xyz", "rpy"} <= set(g["tree"])
     assert submechanism_geometry("LRAnkle")["legs"][0]["shank_pivot"][1] > 0  # Act1 at +y as in LRAnkle.urdf
+
+
+# --- fused maps: to_actuator_space / to_joint_space equal the separate methods --------------------------------------
+
+FUSED = (*PARALLEL, "Head", "BodyYaw")
+ACTUATOR_COMBOS = [  # which of (yd, ydd, tau) are given
+    (False, False, False),
+    (True, False, False),
+    (True, True, False),
+    (False, False, True),
+    (True, False, True),
+    (True, True, True),
+    (False, True, False),  # ydd without yd: no l_ddot (it needs the bias)
+]
+JOINT_COMBOS = [(False, False), (True, False), (False, True), (True, True)]  # which of (ld, f) are given
+
+
+def _fused_samples(name: str, n: int = 200) -> tuple[SubmechanismModel, np.ndarray, ...]:
+    model = models()[name]
+    y = feasible(name)[0][:n] if name in PARALLEL else np.random.default_rng(8).uniform(-0.5, 0.5, (n, model.dof))
+    rng = np.random.default_rng(zlib.crc32(name.encode()) + 1)
+    yd, ydd, tau = rng.uniform(-3, 3, y.shape), rng.uniform(-30, 30, y.shape), rng.normal(scale=50.0, size=y.shape)
+    return model, y, yd, ydd, tau
+
+
+def _matvec(jac: np.ndarray, x: np.ndarray) -> np.ndarray:
+    return np.einsum("...ij,...j->...i", jac, x)
+
+
+def _check_actuator_space(model: SubmechanismModel, inputs: tuple, got: tuple) -> None:
+    """The fused answer against inverse, jacobian, bias and forces: l, f and the bias bit for bit."""
+    y, yd, ydd, tau = inputs
+    l, ld, ldd, f = got
+    np.testing.assert_array_equal(l, model.inverse(y))
+    assert (ld is None) == (yd is None)
+    assert (ldd is None) == (yd is None or ydd is None)
+    assert (f is None) == (tau is None)
+    if yd is not None:
+        jac = model.jacobian(y)
+        scale = np.max(np.abs(jac)) * np.max(np.abs(yd))
+        np.testing.assert_allclose(ld, _matvec(jac, yd), rtol=1e-13, atol=1e-15 * scale)
+        if ydd is not None:
+            want = _matvec(jac, ydd) + model.bias(y, yd)
+            np.testing.assert_allclose(ldd, want, rtol=1e-12, atol=1e-14 * np.max(np.abs(want)))
+            # at y_ddot = 0 the fused l_ddot is exactly the bias
+            at_rest = model.to_actuator_space(y, yd, np.zeros_like(yd))[2]
+            np.testing.assert_array_equal(at_rest, model.bias(y, yd))
+    if tau is not None:
+        np.testing.assert_array_equal(f, model.forces(y, tau))
+
+
+@pytest.mark.parametrize("name", FUSED)
+@pytest.mark.parametrize("combo", ACTUATOR_COMBOS)
+def test_fused_to_actuator_space_equals_separate_methods(name: str, combo: tuple[bool, bool, bool]) -> None:
+    model, y, yd, ydd, tau = _fused_samples(name)
+    yd, ydd, tau = (x if given else None for x, given in zip((yd, ydd, tau), combo, strict=True))
+    batch = model.to_actuator_space(y, yd, ydd, tau)
+    _check_actuator_space(model, (y, yd, ydd, tau), batch)
+    composed = SubmechanismModel.to_actuator_space(model, y, yd, ydd, tau)  # the base class's composition
+    for got, want in zip(batch, composed, strict=True):
+        assert (got is None) == (want is None)
+        if want is not None:
+            np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-13 * max(1.0, float(np.max(np.abs(want)))))
+    for k in range(0, len(y), 20):  # single samples (Python floats), arrays and the float API
+        pick = [None if x is None else x[k] for x in (yd, ydd, tau)]
+        single = model.to_actuator_space(y[k], *pick)
+        _check_actuator_space(model, (y[k], *pick), single)
+        for got, want in zip(single, batch, strict=True):
+            if want is not None:
+                assert isinstance(got, np.ndarray)
+                assert got.shape == (model.dof,)
+                np.testing.assert_allclose(got, want[k], rtol=1e-12, atol=1e-14 * max(1.0, float(np.max(np.abs(want)))))
+        floats = model.to_actuator_space_floats(y[k].tolist(), *(None if x is None else x.tolist() for x in pick))
+        for got, want in zip(floats, single, strict=True):
+            assert (got is None) == (want is None)
+            if want is not None:
+                assert all(type(x) is float for x in got)
+                np.testing.assert_array_equal(np.array(got), want)
+        base_floats = SubmechanismModel.to_actuator_space_floats(model, y[k].tolist(), *pick)  # default adapter
+        for got, want in zip(base_floats, single, strict=True):
+            np.testing.assert_array_equal(np.array(got, dtype=float), np.array(want, dtype=float))
+
+
+@pytest.mark.parametrize("name", FUSED)
+def test_fused_to_actuator_space_any_leading_shape(name: str) -> None:
+    model, y, yd, ydd, tau = _fused_samples(name, 24)
+    shape = (2, 3, 4, model.dof)
+    got = model.to_actuator_space(y.reshape(shape), yd.reshape(shape), ydd.reshape(shape), tau.reshape(shape))
+    flat = model.to_actuator_space(y, yd, ydd, tau)
+    for a, b in zip(got, flat, strict=True):
+        assert a.shape == shape
+        np.testing.assert_array_equal(a.reshape(b.shape), b)
+    # one velocity for every pose broadcasts like the separate methods
+    composed = SubmechanismModel.to_actuator_space(model, y, yd[0], ydd[0], tau)
+    for a, b in zip(model.to_actuator_space(y, yd[0], ydd[0], tau), composed, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)
+    with pytest.raises(KinematicsError, match=name):
+        model.to_actuator_space(np.zeros((3, model.dof + 1)))
+
+
+def _check_joint_space(model: SubmechanismModel, inputs: tuple, got: tuple) -> None:
+    """The fused answer against forward, jacobian (at the returned y) and torques: y and tau bit for bit."""
+    l, ld, f, guess = inputs
+    y, yd, tau = got
+    np.testing.assert_array_equal(y, model.forward(l, guess))
+    assert (yd is None) == (ld is None)
+    assert (tau is None) == (f is None)
+    if ld is not None:
+        jac = model.jacobian(y)
+        want = np.linalg.solve(jac, ld[..., None])[..., 0]
+        np.testing.assert_allclose(yd, want, rtol=1e-12, atol=1e-13 * np.max(np.abs(want)))
+        np.testing.assert_allclose(_matvec(jac, yd), ld, rtol=1e-12, atol=1e-14 * np.max(np.abs(ld)))
+    if f is not None:
+        np.testing.assert_array_equal(tau, model.torques(y, f))  # J evaluated at exactly the returned y
+
+
+@pytest.mark.parametrize("name", FUSED)
+@pytest.mark.parametrize("combo", JOINT_COMBOS)
+def test_fused_to_joint_space_equals_separate_methods(name: str, combo: tuple[bool, bool]) -> None:
+    model, y, yd, _, tau = _fused_samples(name)
+    l = model.inverse(y)
+    ld, f = (x if given else None for x, given in zip((_matvec(model.jacobian(y), yd), tau), combo, strict=True))
+    for guess in (None, y + 1e-3):  # cold and warm start
+        batch = model.to_joint_space(l, ld, f, guess)
+        _check_joint_space(model, (l, ld, f, guess), batch)
+        composed = SubmechanismModel.to_joint_space(model, l, ld, f, guess)
+        for got, want in zip(batch, composed, strict=True):
+            assert (got is None) == (want is None)
+            if want is not None:
+                np.testing.assert_allclose(got, want, rtol=1e-11, atol=1e-12 * max(1.0, float(np.max(np.abs(want)))))
+        for k in range(0, len(y), 20):
+            pick = [None if x is None else x[k] for x in (ld, f, guess)]
+            single = model.to_joint_space(l[k], *pick)
+            _check_joint_space(model, (l[k], *pick), single)
+            np.testing.assert_allclose(single[0], y[k], rtol=0, atol=1e-9)
+            floats = model.to_joint_space_floats(l[k].tolist(), *(None if x is None else x.tolist() for x in pick))
+            for got, want in zip(floats, single, strict=True):
+                assert (got is None) == (want is None)
+                if want is not None:
+                    assert all(type(x) is float for x in got)
+                    np.testing.assert_array_equal(np.array(got), want)
+
+
+@pytest.mark.parametrize("name", TWO_DOF)
+def test_fused_to_joint_space_jacobian_at_the_wrapped_pose(name: str) -> None:
+    """A warm start one turn away converges to y + 2 pi, returned wrapped: J (and tau) belong to the wrapped y."""
+    model, y, yd, _, tau = _fused_samples(name, 20)
+    l = model.inverse(y)
+    ld = _matvec(model.jacobian(y), yd)
+    for turn in (np.array([2 * np.pi, 0.0]), np.array([0.0, -2 * np.pi])):
+        batch = model.to_joint_space(l, ld, tau, y + turn)
+        assert np.all(np.abs(batch[0]) <= np.pi)
+        _check_joint_space(model, (l, ld, tau, y + turn), batch)
+        for k in range(len(y)):
+            single = model.to_joint_space(l[k], ld[k], tau[k], y[k] + turn)
+            _check_joint_space(model, (l[k], ld[k], tau[k], y[k] + turn), single)
+
+
+@pytest.mark.parametrize("name", TWO_DOF)
+def test_fused_singularity_refusal_two_dof(name: str) -> None:
+    model = models()[name]
+    y_singular = _singular_pose(model)
+    tau, yd = np.array([10.0, -5.0]), np.array([0.2, 0.1])
+    with pytest.raises(SingularityError) as separate:
+        model.forces(y_singular, tau)
+    with pytest.raises(SingularityError) as fused:
+        model.to_actuator_space(y_singular, yd, yd, tau)
+    assert str(fused.value) == str(separate.value)
+    with pytest.raises(SingularityError) as floats:
+        model.to_actuator_space_floats(y_singular.tolist(), None, None, tau.tolist())
+    assert str(floats.value) == str(separate.value)
+    poses, taus = np.stack([np.zeros(2), y_singular]), np.stack([tau, tau])
+    with pytest.raises(SingularityError) as separate_batch:
+        model.forces(poses, taus)
+    with pytest.raises(SingularityError) as fused_batch:  # one singular sample refuses the whole call
+        model.to_actuator_space(poses, None, None, taus)
+    assert str(fused_batch.value) == str(separate_batch.value)
+    with pytest.raises(SingularityError, match=name):  # a tiny max_condition refuses even the zero pose
+        model.to_actuator_space(np.zeros(2), tau=tau, max_condition=1.0 - 1e-12)
+    l, ld, ldd, f = model.to_actuator_space(y_singular, yd, yd)  # no forces asked: no refusal
+    assert f is None
+    assert np.all(np.isfinite(l))
+    assert ld is not None
+    assert ldd is not None
+
+
+@pytest.mark.parametrize("name", ["LLHip3", "LRKnee"])
+def test_fused_singularity_refusal_lambda(name: str) -> None:
+    model = models()[name]
+    assert isinstance(model, Lambda1RRPR)
+    for y_singular in (np.array([-model.phi0 + 1e-9]), np.array([-model.phi0])):  # J tiny, J zero
+        with pytest.raises(SingularityError) as separate, np.errstate(divide="ignore"):
+            model.forces(y_singular, np.array([100.0]))
+        for call in (
+            lambda y=y_singular: model.to_actuator_space(y, tau=np.array([100.0])),
+            lambda y=y_singular: model.to_actuator_space_floats(y.tolist(), [1.0], [0.0], [100.0]),
+        ):
+            with pytest.raises(SingularityError) as fused:
+                call()
+            assert str(fused.value) == str(separate.value)
+    poses, taus = np.array([[0.0], [-model.phi0 + 1e-9]]), np.array([[1.0], [1.0]])
+    with pytest.raises(SingularityError) as separate_batch:
+        model.forces(poses, taus)
+    with pytest.raises(SingularityError) as fused_batch:
+        model.to_actuator_space(poses, taus, None, taus)
+    assert str(fused_batch.value) == str(separate_batch.value)
+
+
+def test_fused_linear_refusal_and_errors() -> None:
+    head = models()["Head"]
+    with pytest.raises(SingularityError) as separate:
+        head.forces(np.zeros(3), np.ones(3), max_condition=1.2)  # cond(T) = sqrt(2)
+    for call in (
+        lambda: head.to_actuator_space(np.zeros(3), tau=np.ones(3), max_condition=1.2),
+        lambda: head.to_actuator_space(np.zeros((4, 3)), tau=np.ones((4, 3)), max_condition=1.2),
+        lambda: head.to_actuator_space_floats([0.0] * 3, None, None, [1.0] * 3, 1.2),
+    ):
+        with pytest.raises(SingularityError) as fused:
+            call()
+        assert str(fused.value) == str(separate.value)
+    assert head.to_actuator_space(np.zeros(3), max_condition=1.2)[3] is None  # no forces asked: no refusal
+
+
+@pytest.mark.parametrize("name", ["LLHip3", *TWO_DOF])
+def test_fused_forward_errors(name: str) -> None:
+    model = models()[name]
+    bad = np.full(model.dof, 0.9)
+    with pytest.raises(ForwardKinematicsError) as separate:
+        model.forward(bad)
+    for call in (
+        lambda: model.to_joint_space(bad, bad, bad),
+        lambda: model.to_joint_space_floats(bad.tolist(), bad.tolist(), bad.tolist()),
+    ):
+        with pytest.raises(ForwardKinematicsError) as fused:
+            call()
+        assert str(fused.value) == str(separate.value)
+    with pytest.raises(ForwardKinematicsError, match=r"1 of 2 sample"):
+        model.to_joint_space(np.stack([model.l0, bad]), np.zeros((2, model.dof)))
+
+
+def test_mapper_single_sample_path_is_the_models_fused_maps() -> None:
+    """RobotMapper's list-based single-sample path gives each block's fused answer, also through the gather path."""
+    from rh5_hyrodyn_mapper.mapping import RobotMapper
+    from rh5_msgs_py.names import ACTUATOR_INDEX, NUM_JOINTS
+
+    mapper = RobotMapper()
+    rng = np.random.default_rng(12)
+    q = rng.uniform(-0.1, 0.1, (5, NUM_JOINTS))
+    v, a, tau = rng.normal(size=q.shape), rng.normal(size=q.shape), rng.normal(scale=20.0, size=q.shape)
+    batch = mapper.to_actuators(q, v, a, tau)
+    back_batch = mapper.to_joints(batch.position, batch.velocity, batch.effort, q_guess=q)
+    for gathered in (False, True):
+        if gathered:  # the general path for joint and actuator orders that differ (RH5's coincide)
+            mapper._actuators_from_joints = list  # a copy, as a permutation gives
+            mapper._joints_from_actuators = list
+        for k in range(len(q)):
+            single = mapper.to_actuators(q[k], v[k], a[k], tau[k])
+            back = mapper.to_joints(single.position, single.velocity, single.effort, q_guess=q[k])
+            for model in build_submechanisms():
+                jj = [JOINT_INDEX[j] for j in model.joints]
+                aa = [ACTUATOR_INDEX[x] for x in model.actuators]
+                fused = model.to_actuator_space(q[k, jj], v[k, jj], a[k, jj], tau[k, jj])
+                for got, want in zip(single, fused, strict=True):
+                    np.testing.assert_array_equal(got[aa], want)
+                joints = model.to_joint_space(single.position[aa], single.velocity[aa], single.effort[aa], q[k, jj])
+                for got, want in zip((back.position, back.velocity, back.effort), joints, strict=True):
+                    np.testing.assert_array_equal(got[jj], want)
+            for got, want in zip(single, batch, strict=True):
+                np.testing.assert_allclose(got, want[k], rtol=1e-12, atol=1e-12)
+            for got, want in zip(back, back_batch, strict=True):
+                if want is not None:
+                    np.testing.assert_allclose(got, want[k], rtol=1e-12, atol=1e-12)
+            partial = mapper.to_actuators(q[k], tau=tau[k])
+            assert partial.velocity is None
+            assert partial.acceleration is None
+            np.testing.assert_array_equal(partial.effort, single.effort)
+            cold = mapper.to_joints(single.position, f=single.effort)
+            assert cold.velocity is None
+            np.testing.assert_allclose(cold.position, q[k], rtol=0, atol=1e-9)

@@ -27,7 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .base import ActuatorLimits, FloatArray, as_samples, frozen_array
-from .spu import Scalar, Trig, UniversalJointPlatform, _cross, _trig_array
+from .spu import Scalar, Trig, UniversalJointPlatform, _trig_array
 
 __all__ = ["Ankle2SPRR1U"]
 
@@ -128,40 +128,45 @@ class Ankle2SPRR1U(UniversalJointPlatform):
     def _lengths(self, trig: Trig) -> tuple[Scalar, Scalar]:
         return _leg(self._legs[0], trig)[0], _leg(self._legs[1], trig)[0]
 
-    def _lengths_jacobian(self, trig: Trig) -> tuple[Scalar, ...]:
-        c0, s0 = trig[0], trig[1]
+    def _fused(self, trig: Trig, rates: tuple[Scalar, Scalar] | None) -> tuple[Scalar, ...]:
+        """Lengths, Jacobian and bias in one pass over the legs (the pose part is ``_leg``, inlined for speed)."""
+        c0, s0, c1, s1 = trig
+        if rates is not None:
+            w0, w1 = rates
+            ox, oy, oz = w0, c0 * w1, s0 * w1  # omega = W y_dot
+            by, bz = -s0 * w0 * w1, c0 * w0 * w1  # alpha; alpha_x = 0
         out: list[Scalar] = []
-        rows: list[Scalar] = []
-        for leg in self._legs:
-            l, _, _, _, k = _leg(leg, trig)
-            mx, my, mz = _cross(leg[:3], k)  # n x k = (s x k) / l
-            out.append(l)
-            rows += (mx / l, (c0 * my + s0 * mz) / l)  # W = [(1,0,0), (0,c0,s0)]
-        return out[0], out[1], rows[0], rows[1], rows[2], rows[3]
-
-    def _bias(self, trig: Trig, rates: tuple[Scalar, Scalar]) -> tuple[Scalar, Scalar]:
-        c0, s0 = trig[0], trig[1]
-        w0, w1 = rates
-        omega = (w0, c0 * w1, s0 * w1)  # omega = W y_dot
-        by, bz = -s0 * w0 * w1, c0 * w0 * w1  # alpha = y0d y1d (x cross Rx(y0) y); alpha_x = 0
-        out = []
-        for leg in self._legs:
-            r = leg[9]
-            l, f, a, rho, _ = _leg(leg, trig)
-            (fx, fy, fz), (ax, ay, az) = f, a
-            tx, ty, tz = leg[0] - fx, leg[1] - fy, leg[2] - fz  # delta = s - f
-            f_dot = _cross(omega, f)  # delta_dot = -f_dot
-            vx, vy, vz = f_dot
-            qx, qy, qz = _cross(omega, f_dot)
+        for sx, sy, sz, fx0, fy0, fz0, ax0, ay0, az0, r in self._legs:
+            fx = c1 * fx0 + s1 * fz0  # _leg: f = Rx(y0) Ry(y1) f0
+            t = c1 * fz0 - s1 * fx0
+            fy = c0 * fy0 - s0 * t
+            fz = s0 * fy0 + c0 * t
+            ax = c1 * ax0 + s1 * az0  # a = Rx(y0) Ry(y1) a0
+            t = c1 * az0 - s1 * ax0
+            ay = c0 * ay0 - s0 * t
+            az = s0 * ay0 + c0 * t
+            tx, ty, tz = sx - fx, sy - fy, sz - fz  # delta = s - f
+            alpha = ax * tx + ay * ty + az * tz
+            px, py, pz = tx - alpha * ax, ty - alpha * ay, tz - alpha * az
+            rho = (px * px + py * py + pz * pz) ** 0.5
+            e = rho - r
+            l = (alpha * alpha + e * e) ** 0.5
+            g = r / rho
+            kx, ky, kz = fx + g * px, fy + g * py, fz + g * pz
+            my, mz = sz * kx - sx * kz, sx * ky - sy * kx  # s x k; n x k = (s x k) / l
+            out += (l, (sy * kz - sz * ky) / l, (c0 * my + s0 * mz) / l)  # W = [(1,0,0), (0,c0,s0)]
+            if rates is None:
+                out.append(None)
+                continue
+            vx, vy, vz = oy * fz - oz * fy, oz * fx - ox * fz, ox * fy - oy * fx  # f_dot = omega x f
+            qx, qy, qz = oy * vz - oz * vy, oz * vx - ox * vz, ox * vy - oy * vx
             fddx, fddy, fddz = by * fz - bz * fy + qx, bz * fx + qy, -by * fx + qz  # f_ddot = alpha x f + omega x f_dot
-            a_dot = _cross(omega, a)
-            gx, gy, gz = a_dot
-            hx, hy, hz = _cross(omega, a_dot)
+            gx, gy, gz = oy * az - oz * ay, oz * ax - ox * az, ox * ay - oy * ax  # a_dot = omega x a
+            hx, hy, hz = oy * gz - oz * gy, oz * gx - ox * gz, ox * gy - oy * gx
             addx, addy, addz = by * az - bz * ay + hx, bz * ax + hy, -by * ax + hz  # a_ddot
-            d_dot = -(tx * vx + ty * vy + tz * vz)  # D_dot / 2
+            d_dot = -(tx * vx + ty * vy + tz * vz)  # D_dot / 2 (delta_dot = -f_dot)
             d_ddot = vx * vx + vy * vy + vz * vz - (tx * fddx + ty * fddy + tz * fddz)  # D_ddot / 2
-            a_ = ax * tx + ay * ty + az * tz
-            a_dot = gx * tx + gy * ty + gz * tz - (ax * vx + ay * vy + az * vz)
+            a_dot = gx * tx + gy * ty + gz * tz - (ax * vx + ay * vy + az * vz)  # A = a . delta = alpha
             a_ddot = (
                 addx * tx
                 + addy * ty
@@ -169,11 +174,11 @@ class Ankle2SPRR1U(UniversalJointPlatform):
                 - 2.0 * (gx * vx + gy * vy + gz * vz)
                 - (ax * fddx + ay * fddy + az * fddz)
             )
-            rho_dot = (d_dot - a_ * a_dot) / rho
-            rho_ddot = (d_ddot - a_dot * a_dot - a_ * a_ddot - rho_dot * rho_dot) / rho
+            rho_dot = (d_dot - alpha * a_dot) / rho
+            rho_ddot = (d_ddot - a_dot * a_dot - alpha * a_ddot - rho_dot * rho_dot) / rho
             l_dot = (d_dot - r * rho_dot) / l
             out.append((d_ddot - r * rho_ddot - l_dot * l_dot) / l)
-        return out[0], out[1]
+        return out[0], out[4], out[1], out[2], out[5], out[6], out[3], out[7]
 
 
 def _leg(leg: tuple[float, ...], trig: Trig) -> tuple[Any, ...]:

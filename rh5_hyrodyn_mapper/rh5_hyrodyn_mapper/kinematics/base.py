@@ -11,6 +11,7 @@ tau = J^T f and f = J^-T tau.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -116,6 +117,48 @@ class SubmechanismModel(ABC):
         tau = None if f is None else self.torques(y, f, jac=jac)
         return y, yd, tau
 
+    def to_actuator_space_floats(
+        self,
+        y: Sequence[float],
+        yd: Sequence[float] | None = None,
+        ydd: Sequence[float] | None = None,
+        tau: Sequence[float] | None = None,
+        max_condition: float = 1e6,
+    ) -> tuple[Sequence[float], Sequence[float] | None, Sequence[float] | None, Sequence[float] | None]:
+        """``to_actuator_space`` for ONE sample given as m Python floats each (lists or tuples).
+
+        Returns sequences of m Python floats (None where the input is None) with the same values and errors as
+        ``to_actuator_space`` on arrays of shape (m,); the single-sample path of RobotMapper, which slices Python
+        lists instead of arrays. Subclasses override it with plain float arithmetic; this default goes through the
+        array method.
+        """
+        results = self.to_actuator_space(
+            np.array(y, dtype=np.float64),
+            None if yd is None else np.array(yd, dtype=np.float64),
+            None if ydd is None else np.array(ydd, dtype=np.float64),
+            None if tau is None else np.array(tau, dtype=np.float64),
+            max_condition,
+        )
+        l, ld, ldd, f = (None if x is None else np.asarray(x, dtype=np.float64).tolist() for x in results)
+        return l, ld, ldd, f
+
+    def to_joint_space_floats(
+        self,
+        l: Sequence[float],
+        ld: Sequence[float] | None = None,
+        f: Sequence[float] | None = None,
+        y_guess: Sequence[float] | None = None,
+    ) -> tuple[Sequence[float], Sequence[float] | None, Sequence[float] | None]:
+        """``to_joint_space`` for ONE sample given as m Python floats each (see ``to_actuator_space_floats``)."""
+        results = self.to_joint_space(
+            np.array(l, dtype=np.float64),
+            None if ld is None else np.array(ld, dtype=np.float64),
+            None if f is None else np.array(f, dtype=np.float64),
+            None if y_guess is None else np.array(y_guess, dtype=np.float64),
+        )
+        y, yd, tau = (None if x is None else np.asarray(x, dtype=np.float64).tolist() for x in results)
+        return y, yd, tau
+
     def forces(
         self, y: FloatArray, tau: FloatArray, max_condition: float = 1e6, jac: FloatArray | None = None
     ) -> FloatArray:
@@ -185,3 +228,30 @@ def as_samples(name: str, x: npt.ArrayLike, m: int) -> FloatArray:
     if out.ndim == 0 or out.shape[-1] != m:
         raise KinematicsError(f"{name}: expected shape (..., {m}), got {out.shape}")
     return out
+
+
+def sample_lists(m: int, *values: npt.ArrayLike | None) -> list[list[float] | None] | None:
+    """Each of ``values`` as a list of m Python floats (None stays None) when every given one is ONE sample (m,).
+
+    None when any of them has another shape (the caller then takes its vectorised path, which validates them).
+    """
+    out: list[list[float] | None] = []
+    for x in values:
+        if x is None:
+            out.append(None)
+            continue
+        a = np.asarray(x, dtype=np.float64)
+        if a.shape != (m,):
+            return None
+        out.append(a.tolist())
+    return out
+
+
+def optional_array(values: Sequence[float] | None) -> FloatArray | None:
+    """A float64 array of a float sequence, None for None (results of the single-sample paths)."""
+    return None if values is None else np.array(values, dtype=np.float64)
+
+
+def singular_solve() -> np.linalg.LinAlgError:
+    """The error np.linalg.solve raises for an exactly singular J (closed-form 2x2 and 1x1 solves raise it too)."""
+    return np.linalg.LinAlgError("Singular matrix")

@@ -17,6 +17,9 @@ knee; the planar model with the pivot distances l1, l2 instead of r1, r2 errs by
 The singularity guard of ``forces`` uses the scale-free condition h_max / |J|, where h_max is the largest moment
 arm the geometry can reach (for a planar lambda the shorter link); it grows without bound as the actuator line
 approaches O (theta -> 0 or pi).
+
+The fused maps ``to_actuator_space`` / ``to_joint_space`` evaluate cos and sin of phi once and derive l, J, the bias,
+the force and (after the closed-form FK) y_dot and tau from them; on one sample they work on Python floats.
 """
 
 from __future__ import annotations
@@ -36,6 +39,9 @@ from .base import (
     SingularityError,
     as_samples,
     frozen_array,
+    optional_array,
+    sample_lists,
+    singular_solve,
 )
 
 __all__ = ["Lambda1RRPR"]
@@ -186,13 +192,134 @@ class Lambda1RRPR(ImmutableModel):
         jac = (self.jacobian(y) if jac is None else np.asarray(jac, dtype=np.float64))[..., 0]
         condition = self.moment_arm_max / np.abs(jac)
         if np.any(~(condition <= max_condition)):
-            worst = float(np.max(condition))
-            msg = (
-                f"{self.name}: force map refused near a singular pose (moment arm {np.min(np.abs(jac)):.3g} m, "
-                f"condition h_max/|J| = {worst:.3g} > {max_condition:.3g})"
-            )
-            raise SingularityError(msg)
+            raise SingularityError(self._refusal(np.min(np.abs(jac)), float(np.max(condition)), max_condition))
         return np.asarray(tau, dtype=np.float64) / jac
+
+    def _refusal(self, moment_arm: float, condition: float, max_condition: float) -> str:
+        return (
+            f"{self.name}: force map refused near a singular pose (moment arm {moment_arm:.3g} m, "
+            f"condition h_max/|J| = {condition:.3g} > {max_condition:.3g})"
+        )
+
+    # --- fused maps ------------------------------------------------------------------------------------------------
+
+    def to_actuator_space(
+        self,
+        y: FloatArray,
+        yd: FloatArray | None = None,
+        ydd: FloatArray | None = None,
+        tau: FloatArray | None = None,
+        max_condition: float = 1e6,
+    ) -> tuple[FloatArray, FloatArray | None, FloatArray | None, FloatArray | None]:
+        """(l, l_dot, l_ddot, f) from one cos/sin evaluation (see the base class)."""
+        single = sample_lists(1, y, yd, ydd, tau)
+        if single is not None:
+            l, ld, ldd, f = self.to_actuator_space_floats(*single, max_condition)
+            return np.array(l), optional_array(ld), optional_array(ldd), optional_array(f)
+        phi = self.phi0 + as_samples(self.name, y, 1)
+        c = np.cos(phi)
+        l = np.sqrt(self._k0 - self._k1 * c)
+        if yd is None and tau is None:
+            return l, None, None, None
+        j = self._r12 * np.sin(phi) / l
+        f = None
+        if tau is not None:
+            tau = as_samples(self.name, tau, 1)
+            condition = self.moment_arm_max / np.abs(j)
+            if np.any(~(condition <= max_condition)):
+                raise SingularityError(self._refusal(np.min(np.abs(j)), float(np.max(condition)), max_condition))
+            f = tau / j
+        ld = ldd = None
+        if yd is not None:
+            yd = as_samples(self.name, yd, 1)
+            ld = j * yd
+            if ydd is not None:
+                ldd = j * as_samples(self.name, ydd, 1) + (0.5 * self._k1 * c - j * j) / l * yd * yd
+        return l, ld, ldd, f
+
+    def to_actuator_space_floats(
+        self,
+        y: Sequence[float],
+        yd: Sequence[float] | None = None,
+        ydd: Sequence[float] | None = None,
+        tau: Sequence[float] | None = None,
+        max_condition: float = 1e6,
+    ) -> tuple[Sequence[float], Sequence[float] | None, Sequence[float] | None, Sequence[float] | None]:
+        """One sample on Python floats (see the base class)."""
+        (q,) = y
+        phi = self.phi0 + q
+        c = math.cos(phi)
+        l = math.sqrt(self._k0 - self._k1 * c)
+        if yd is None and tau is None:
+            return (l,), None, None, None
+        j = self._r12 * math.sin(phi) / l
+        f = None
+        if tau is not None:
+            if not abs(j) * max_condition >= self.moment_arm_max:
+                condition = self.moment_arm_max / abs(j) if j != 0.0 else math.inf
+                if not condition <= max_condition:
+                    raise SingularityError(self._refusal(abs(j), condition, max_condition))
+            f = (tau[0] / j,) if j != 0.0 else (float(np.float64(tau[0]) / j),)  # max_condition = inf: as numpy
+        if yd is None:
+            return (l,), None, None, f
+        (w,) = yd
+        ld = (j * w,)
+        ldd = None if ydd is None else (j * ydd[0] + (0.5 * self._k1 * c - j * j) / l * w**2,)  # as bias()
+        return (l,), ld, ldd, f
+
+    def to_joint_space(
+        self,
+        l: FloatArray,
+        ld: FloatArray | None = None,
+        f: FloatArray | None = None,
+        y_guess: FloatArray | None = None,
+    ) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
+        """(y, y_dot, tau): closed-form FK, then J(y) for y_dot = l_dot / J and tau = J f (see the base class)."""
+        single = sample_lists(1, l, ld, f)
+        if single is not None:
+            y, yd, tau = self.to_joint_space_floats(*single)
+            return np.array(y), optional_array(yd), optional_array(tau)
+        y = self.forward_with_info(l, y_guess)[0]
+        if ld is None and f is None:
+            return y, None, None
+        phi = self.phi0 + y
+        j = self._r12 * np.sin(phi) / np.sqrt(self._k0 - self._k1 * np.cos(phi))
+        yd = tau = None
+        if ld is not None:
+            if np.any(j == 0.0):
+                raise singular_solve()
+            yd = as_samples(self.name, ld, 1) / j
+        if f is not None:
+            tau = j * as_samples(self.name, f, 1)
+        return y, yd, tau
+
+    def to_joint_space_floats(
+        self,
+        l: Sequence[float],
+        ld: Sequence[float] | None = None,
+        f: Sequence[float] | None = None,
+        y_guess: Sequence[float] | None = None,
+    ) -> tuple[Sequence[float], Sequence[float] | None, Sequence[float] | None]:
+        """One sample on Python floats (see the base class); ``y_guess`` is not needed (closed form)."""
+        del y_guess
+        (length,) = l
+        c = (self._k0 - length * length) / self._k1
+        if abs(c) <= 1.0:
+            y = self.sign * math.acos(c) - self.phi0
+        else:  # unreachable (raises) or outside by rounding only (clipped): the vectorised path decides
+            y = float(self.forward_with_info(np.array([[length]]))[0][0, 0])
+        if ld is None and f is None:
+            return (y,), None, None
+        phi = self.phi0 + y
+        j = self._r12 * math.sin(phi) / math.sqrt(self._k0 - self._k1 * math.cos(phi))
+        yd = tau = None
+        if ld is not None:
+            if j == 0.0:
+                raise singular_solve()
+            yd = (ld[0] / j,)
+        if f is not None:
+            tau = (j * f[0],)
+        return (y,), yd, tau
 
     def torques(self, y: FloatArray, f: FloatArray, jac: FloatArray | None = None) -> FloatArray:
         """tau = J f (``jac`` may pass J(y) when the caller has it already)."""

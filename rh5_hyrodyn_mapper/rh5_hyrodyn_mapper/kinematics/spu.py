@@ -13,6 +13,9 @@ Bias (4.4): l_ddot_i = n_i . e_ddot_i + (|e_dot_i|^2 - (n_i . e_dot_i)^2) / l_i 
 ``UniversalJointPlatform`` holds what the SPU and the ankle's 2-SPRR+1U share: the U-joint kinematics, the Newton
 forward kinematics (HyRoDyn's approach, all samples at once) and the closed-form 2x2 statics. Every kernel is plain
 arithmetic on either Python floats (the single-sample fast path, shape (2,)) or numpy arrays (any leading shape).
+The fused maps ``to_actuator_space`` / ``to_joint_space`` evaluate one pose once: one trig evaluation, then lengths,
+Jacobian and bias from the same intermediate quantities (``_fused``), forces and joint rates by the closed-form 2x2
+inverse; Newton hands over the Jacobian of its converged iterate, which is exactly J at the returned y.
 """
 
 from __future__ import annotations
@@ -33,6 +36,9 @@ from .base import (
     SingularityError,
     as_samples,
     frozen_array,
+    optional_array,
+    sample_lists,
+    singular_solve,
 )
 
 __all__ = ["Platform2SPU1U", "UniversalJointPlatform"]
@@ -122,6 +128,7 @@ class UniversalJointPlatform(ImmutableModel):
         if not abs(det0) > 0.0:
             raise ValueError(f"{self.name}: singular at the zero pose")
         self.jacobian0 = frozen_array(jac0)
+        self._l0_floats = tuple(self.l0.tolist())
         self._jinv0 = tuple(np.linalg.inv(jac0).ravel().tolist())
         self._mode = math.copysign(1.0, det0)
         self._freeze()
@@ -133,12 +140,21 @@ class UniversalJointPlatform(ImmutableModel):
         """(l1, l2) at the pose with ``trig`` = (cos y0, sin y0, cos y1, sin y1)."""
 
     @abstractmethod
+    def _fused(self, trig: Trig, rates: tuple[Scalar, Scalar] | None) -> tuple[Scalar, ...]:
+        """(l1, l2, J00, J01, J10, J11, b1, b2) in one pass over the legs; (b1, b2) = J-dot y-dot for y-dot = ``rates``.
+
+        b1, b2 are None when ``rates`` is None (lengths and Jacobian only: Newton, forces, rates).
+        """
+
     def _lengths_jacobian(self, trig: Trig) -> tuple[Scalar, ...]:
         """(l1, l2, J00, J01, J10, J11)."""
+        l1, l2, j00, j01, j10, j11, _, _ = self._fused(trig, None)
+        return l1, l2, j00, j01, j10, j11
 
-    @abstractmethod
     def _bias(self, trig: Trig, rates: tuple[Scalar, Scalar]) -> tuple[Scalar, Scalar]:
         """(b1, b2) = J-dot y-dot for y-dot = ``rates``."""
+        _, _, _, _, _, _, b1, b2 = self._fused(trig, rates)
+        return b1, b2
 
     # --- the contract ----------------------------------------------------------------------------------------------
 
@@ -169,6 +185,147 @@ class UniversalJointPlatform(ImmutableModel):
     def forward(self, l: FloatArray, y_guess: FloatArray | None = None) -> FloatArray:
         return self.forward_with_info(l, y_guess)[0]
 
+    # --- fused maps: one pose evaluation per call ------------------------------------------------------------------
+
+    def to_actuator_space(
+        self,
+        y: FloatArray,
+        yd: FloatArray | None = None,
+        ydd: FloatArray | None = None,
+        tau: FloatArray | None = None,
+        max_condition: float = 1e6,
+    ) -> tuple[FloatArray, FloatArray | None, FloatArray | None, FloatArray | None]:
+        """(l, l_dot, l_ddot, f) from one trig evaluation and one pass over the legs (see the base class)."""
+        single = sample_lists(2, y, yd, ydd, tau)
+        if single is not None:
+            l, ld, ldd, f = self.to_actuator_space_floats(*single, max_condition)
+            return np.array(l), optional_array(ld), optional_array(ldd), optional_array(f)
+        y = as_samples(self.name, y, 2)
+        trig = _trig_array(y)
+        if yd is None and tau is None:
+            return np.stack(self._lengths(trig), axis=-1), None, None, None
+        if yd is not None:
+            yd = as_samples(self.name, yd, 2)
+        rates = None if yd is None or ydd is None else (yd[..., 0], yd[..., 1])  # the bias only for l_ddot
+        l1, l2, j00, j01, j10, j11, b1, b2 = self._fused(trig, rates)
+        f = None
+        if tau is not None:
+            tau = as_samples(self.name, tau, 2)
+            condition = _condition(j00, j01, j10, j11)
+            if np.any(~(condition <= max_condition)):
+                raise SingularityError(self._refusal(float(np.max(condition)), max_condition))
+            det = j00 * j11 - j01 * j10
+            t0, t1 = tau[..., 0], tau[..., 1]
+            f = np.stack(((j11 * t0 - j10 * t1) / det, (j00 * t1 - j01 * t0) / det), axis=-1)
+        ld = ldd = None
+        if yd is not None:
+            w0, w1 = yd[..., 0], yd[..., 1]
+            ld = np.stack((j00 * w0 + j01 * w1, j10 * w0 + j11 * w1), axis=-1)
+            if ydd is not None:
+                ydd = as_samples(self.name, ydd, 2)
+                a0, a1 = ydd[..., 0], ydd[..., 1]
+                ldd = np.stack((j00 * a0 + j01 * a1 + b1, j10 * a0 + j11 * a1 + b2), axis=-1)
+        return np.stack((l1, l2), axis=-1), ld, ldd, f
+
+    def to_actuator_space_floats(
+        self,
+        y: Sequence[float],
+        yd: Sequence[float] | None = None,
+        ydd: Sequence[float] | None = None,
+        tau: Sequence[float] | None = None,
+        max_condition: float = 1e6,
+    ) -> tuple[Sequence[float], Sequence[float] | None, Sequence[float] | None, Sequence[float] | None]:
+        """One sample on Python floats (see the base class)."""
+        y0, y1 = y
+        trig = (math.cos(y0), math.sin(y0), math.cos(y1), math.sin(y1))
+        if yd is None:
+            if tau is None:
+                return self._lengths(trig), None, None, None
+            l1, l2, j00, j01, j10, j11, _, _ = self._fused(trig, None)
+            ld = ldd = None
+        else:
+            w0, w1 = yd
+            if ydd is None:  # no bias needed
+                l1, l2, j00, j01, j10, j11, _, _ = self._fused(trig, None)
+                ldd = None
+            else:
+                l1, l2, j00, j01, j10, j11, b1, b2 = self._fused(trig, (w0, w1))
+                a0, a1 = ydd
+                ldd = (j00 * a0 + j01 * a1 + b1, j10 * a0 + j11 * a1 + b2)
+            ld = (j00 * w0 + j01 * w1, j10 * w0 + j11 * w1)
+        if tau is None:
+            return (l1, l2), ld, ldd, None
+        det = j00 * j11 - j01 * j10
+        frob = j00 * j00 + j01 * j01 + j10 * j10 + j11 * j11
+        disc = frob * frob - 4.0 * det * det
+        disc = math.sqrt(0.0 if disc < 0.0 else disc)  # = max(disc, 0.0) as in forces(), NaN kept
+        cond = (frob + disc) / (2.0 * abs(det)) if det != 0.0 else math.inf
+        if not cond <= max_condition:
+            raise SingularityError(self._refusal(cond, max_condition))
+        t0, t1 = tau
+        return (l1, l2), ld, ldd, ((j11 * t0 - j10 * t1) / det, (j00 * t1 - j01 * t0) / det)
+
+    def to_joint_space(
+        self,
+        l: FloatArray,
+        ld: FloatArray | None = None,
+        f: FloatArray | None = None,
+        y_guess: FloatArray | None = None,
+    ) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
+        """(y, y_dot, tau): Newton FK, then the converged iterate's J (= J(y)) for y_dot = J^-1 l_dot, tau = J^T f."""
+        single = sample_lists(2, l, ld, f, y_guess)
+        if single is not None:
+            y, yd, tau = self.to_joint_space_floats(*single)
+            return np.array(y), optional_array(yd), optional_array(tau)
+        l = as_samples(self.name, l, 2)
+        flat = l.reshape(-1, 2)
+        guess = None if y_guess is None else np.broadcast_to(as_samples(self.name, y_guess, 2), l.shape).reshape(-1, 2)
+        need_jac = ld is not None or f is not None
+        y, _, jac = self._newton_batch(flat, guess, with_jacobian=need_jac)
+        y = y.reshape(l.shape)
+        if not need_jac:
+            return y, None, None
+        j00, j01, j10, j11 = (j.reshape(l.shape[:-1]) for j in jac)
+        yd = tau = None
+        if ld is not None:
+            ld = as_samples(self.name, ld, 2)
+            det = j00 * j11 - j01 * j10
+            if np.any(det == 0.0):
+                raise singular_solve()
+            u0, u1 = ld[..., 0], ld[..., 1]
+            yd = np.stack(((j11 * u0 - j01 * u1) / det, (j00 * u1 - j10 * u0) / det), axis=-1)
+        if f is not None:
+            f = as_samples(self.name, f, 2)
+            f0, f1 = f[..., 0], f[..., 1]
+            tau = np.stack((j00 * f0 + j10 * f1, j01 * f0 + j11 * f1), axis=-1)
+        return y, yd, tau
+
+    def to_joint_space_floats(
+        self,
+        l: Sequence[float],
+        ld: Sequence[float] | None = None,
+        f: Sequence[float] | None = None,
+        y_guess: Sequence[float] | None = None,
+    ) -> tuple[Sequence[float], Sequence[float] | None, Sequence[float] | None]:
+        """One sample on Python floats (see the base class)."""
+        t0, t1 = l
+        need_jac = ld is not None or f is not None
+        y0, y1, _, jac = self._newton_floats(t0, t1, y_guess, need_jac)
+        if not need_jac:
+            return (y0, y1), None, None
+        j00, j01, j10, j11 = jac
+        yd = tau = None
+        if ld is not None:
+            det = j00 * j11 - j01 * j10
+            if det == 0.0:
+                raise singular_solve()
+            u0, u1 = ld
+            yd = ((j11 * u0 - j01 * u1) / det, (j00 * u1 - j10 * u0) / det)
+        if f is not None:
+            f0, f1 = f
+            tau = (j00 * f0 + j10 * f1, j01 * f0 + j11 * f1)
+        return (y0, y1), yd, tau
+
     def forward_with_info(self, l: FloatArray, y_guess: FloatArray | None = None) -> tuple[FloatArray, Any]:
         """Joints y(l) and the Newton iteration count per sample (an int, or an int array of the leading shape)."""
         l = np.asarray(l, dtype=np.float64)
@@ -177,7 +334,7 @@ class UniversalJointPlatform(ImmutableModel):
         l = as_samples(self.name, l, 2)
         flat = l.reshape(-1, 2)
         guess = None if y_guess is None else np.broadcast_to(as_samples(self.name, y_guess, 2), l.shape).reshape(-1, 2)
-        y, iterations = self._newton_batch(flat, guess)
+        y, iterations, _ = self._newton_batch(flat, guess)
         return y.reshape(l.shape), iterations.reshape(l.shape[:-1])
 
     def forces(
@@ -241,22 +398,41 @@ class UniversalJointPlatform(ImmutableModel):
 
     def _newton_single(self, l: FloatArray, y_guess: FloatArray | None) -> tuple[FloatArray, int]:
         t0, t1 = l.tolist()
+        guess = None if y_guess is None else np.asarray(y_guess, dtype=np.float64).tolist()
+        y0, y1, iteration, _ = self._newton_floats(t0, t1, guess, False)
+        return np.array((y0, y1)), iteration
+
+    def _newton_floats(
+        self, t0: float, t1: float, y_guess: Sequence[float] | None, with_jacobian: bool
+    ) -> tuple[float, float, int, tuple[float, float, float, float] | None]:
+        """Newton on Python floats: (y0, y1) wrapped to [-pi, pi], the iteration count, and J at exactly that y.
+
+        J is the converged iterate's (no step follows it), re-evaluated only where wrapping moved y by 2 pi; None
+        unless ``with_jacobian``.
+        """
         if y_guess is None:
-            l00, l01 = self.l0.tolist()
+            l00, l01 = self._l0_floats
             y0, y1 = self._cold_start(t0 - l00, t1 - l01)
         else:
-            y0, y1 = np.asarray(y_guess, dtype=np.float64).tolist()
+            y0, y1 = y_guess
         tol, cap, max_step = self.tolerance, self.max_iterations, self.max_step
         residual = math.inf
         for iteration in range(cap + 1):
-            l1, l2, j00, j01, j10, j11 = self._lengths_jacobian(_trig(y0, y1))
+            l1, l2, j00, j01, j10, j11, _, _ = self._fused(_trig(y0, y1), None)
             r0, r1 = l1 - t0, l2 - t1
             residual = max(abs(r0), abs(r1))
             det = j00 * j11 - j01 * j10
             if residual <= tol:
                 if det * self._mode <= 0.0:
-                    raise self._fail(1, 1, residual, l, "converged outside the working mode of the zero pose")
-                return np.array((_wrap(y0), _wrap(y1))), iteration
+                    raise self._fail(
+                        1, 1, residual, np.array((t0, t1)), "converged outside the working mode of the zero pose"
+                    )
+                w0, w1 = _wrap(y0), _wrap(y1)
+                if not with_jacobian:
+                    return w0, w1, iteration, None
+                if w0 != y0 or w1 != y1:
+                    _, _, j00, j01, j10, j11 = self._lengths_jacobian(_trig(w0, w1))
+                return w0, w1, iteration, (j00, j01, j10, j11)
             if iteration == cap or not (math.isfinite(residual) and det != 0.0):
                 break
             d0 = (j11 * r0 - j01 * r1) / det
@@ -266,10 +442,14 @@ class UniversalJointPlatform(ImmutableModel):
                 d0, d1 = d0 * (max_step / step), d1 * (max_step / step)
             y0 -= d0
             y1 -= d1
-        raise self._fail(1, 1, residual, l, "Newton did not converge (lengths not assemblable?)")
+        raise self._fail(1, 1, residual, np.array((t0, t1)), "Newton did not converge (lengths not assemblable?)")
 
-    def _newton_batch(self, l: FloatArray, y_guess: FloatArray | None) -> tuple[FloatArray, npt.NDArray[np.int64]]:
+    def _newton_batch(
+        self, l: FloatArray, y_guess: FloatArray | None, with_jacobian: bool = False
+    ) -> tuple[FloatArray, npt.NDArray[np.int64], tuple[FloatArray, ...] | None]:
+        """Newton on (n, 2) arrays: y, iterations, and (J00, J01, J10, J11) at exactly y if ``with_jacobian``."""
         n = l.shape[0]
+        jac = tuple(np.empty(n) for _ in range(4)) if with_jacobian else None
         if y_guess is None:
             y = np.stack(self._cold_start(l[:, 0] - self.l0[0], l[:, 1] - self.l0[1]), axis=-1)
         else:
@@ -279,7 +459,7 @@ class UniversalJointPlatform(ImmutableModel):
         ya, la = y, l
         residual = np.zeros(0)
         for iteration in range(self.max_iterations + 1):
-            l1, l2, j00, j01, j10, j11 = self._lengths_jacobian(_trig_array(ya))
+            l1, l2, j00, j01, j10, j11, _, _ = self._fused(_trig_array(ya), None)
             r0, r1 = l1 - la[:, 0], l2 - la[:, 1]
             residual = np.maximum(np.abs(r0), np.abs(r1))
             det = j00 * j11 - j01 * j10
@@ -293,6 +473,9 @@ class UniversalJointPlatform(ImmutableModel):
                     )
                 y[active[done]] = ya[done]
                 iterations[active[done]] = iteration
+                if jac is not None:
+                    for store, value in zip(jac, (j00, j01, j10, j11), strict=True):
+                        store[active[done]] = value[done]
                 keep = ~done
                 active, ya, la = active[keep], ya[keep], la[keep]
                 r0, r1, det, residual = r0[keep], r1[keep], det[keep], residual[keep]
@@ -312,7 +495,12 @@ class UniversalJointPlatform(ImmutableModel):
         outside = np.abs(y) > _PI
         if np.any(outside):
             y = np.where(outside, (y + _PI) % _TWO_PI - _PI, y)
-        return y, iterations
+            if jac is not None:  # J of the converged iterate is J(y) only where wrapping did not move y
+                moved = np.flatnonzero(np.any(outside, axis=-1))
+                _, _, *again = self._lengths_jacobian(_trig_array(y[moved]))
+                for store, value in zip(jac, again, strict=True):
+                    store[moved] = value
+        return y, iterations, jac
 
 
 def _condition(j00: Scalar, j01: Scalar, j10: Scalar, j11: Scalar) -> Any:
@@ -369,9 +557,13 @@ class Platform2SPU1U(UniversalJointPlatform):
             out.append((dx * dx + dy * dy + dz * dz) ** 0.5)
         return out[0], out[1]
 
-    def _lengths_jacobian(self, trig: Trig) -> tuple[Scalar, ...]:
+    def _fused(self, trig: Trig, rates: tuple[Scalar, Scalar] | None) -> tuple[Scalar, ...]:
         c0, s0, c1, s1 = trig
-        lengths, rows = [], []
+        if rates is not None:
+            w0, w1 = rates
+            ox, oy, oz = w0, c0 * w1, s0 * w1  # omega = W y_dot
+            ay, az = -s0 * w0 * w1, c0 * w0 * w1  # alpha = W-dot y_dot = y0d y1d (x cross Rx(y0) y); alpha_x = 0
+        out: list[Scalar] = []
         for bx, by, bz, ex, ey, ez in self._legs:
             px = c1 * ex + s1 * ez
             wz = c1 * ez - s1 * ex
@@ -379,31 +571,14 @@ class Platform2SPU1U(UniversalJointPlatform):
             pz = s0 * ey + c0 * wz
             dx, dy, dz = px - bx, py - by, pz - bz
             l = (dx * dx + dy * dy + dz * dz) ** 0.5
-            mx, my, mz = _cross((bx, by, bz), (px, py, pz))  # e x n = (b x e) / l
-            lengths.append(l)
-            rows.append((mx / l, (c0 * my + s0 * mz) / l))  # W = [x, Rx(y0) y] = [(1,0,0), (0,c0,s0)]
-        return lengths[0], lengths[1], rows[0][0], rows[0][1], rows[1][0], rows[1][1]
-
-    def _bias(self, trig: Trig, rates: tuple[Scalar, Scalar]) -> tuple[Scalar, Scalar]:
-        c0, s0, c1, s1 = trig
-        w0, w1 = rates
-        omega = (w0, c0 * w1, s0 * w1)  # omega = W y_dot
-        ay, az = -s0 * w0 * w1, c0 * w0 * w1  # alpha = W-dot y_dot = y0d y1d (x cross Rx(y0) y); alpha_x = 0
-        out = []
-        for bx, by, bz, ex, ey, ez in self._legs:
-            px = c1 * ex + s1 * ez
-            wz = c1 * ez - s1 * ex
-            py = c0 * ey - s0 * wz
-            pz = s0 * ey + c0 * wz
-            dx, dy, dz = px - bx, py - by, pz - bz
-            l = (dx * dx + dy * dy + dz * dz) ** 0.5
-            e_dot = _cross(omega, (px, py, pz))  # e_dot = omega x e
-            vx, vy, vz = e_dot
-            qx, qy, qz = _cross(omega, e_dot)
-            ax_ = ay * pz - az * py  # alpha x e (alpha_x = 0)
-            ay_ = az * px
-            az_ = -ay * px
+            my, mz = bz * px - bx * pz, bx * py - by * px  # b x e; e x n = (b x e) / l
+            out += (l, (by * pz - bz * py) / l, (c0 * my + s0 * mz) / l)  # W = [x, Rx(y0) y] = [(1,0,0), (0,c0,s0)]
+            if rates is None:
+                out.append(None)
+                continue
+            vx, vy, vz = oy * pz - oz * py, oz * px - ox * pz, ox * py - oy * px  # e_dot = omega x e
+            qx, qy, qz = oy * vz - oz * vy, oz * vx - ox * vz, ox * vy - oy * vx  # omega x e_dot
             ndv = (dx * vx + dy * vy + dz * vz) / l
-            nda = (dx * (ax_ + qx) + dy * (ay_ + qy) + dz * (az_ + qz)) / l
+            nda = (dx * ((ay * pz - az * py) + qx) + dy * (az * px + qy) + dz * (-ay * px + qz)) / l  # n . e_ddot
             out.append(nda + (vx * vx + vy * vy + vz * vz - ndv * ndv) / l)
-        return out[0], out[1]
+        return out[0], out[4], out[1], out[2], out[5], out[6], out[3], out[7]
