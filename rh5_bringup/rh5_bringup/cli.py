@@ -41,17 +41,29 @@ def format_report(run: SuiteRun, exit_codes: dict[str, int]) -> str:
 
 def call_trigger(node: Any, service: str, timeout_s: float = 10.0) -> tuple[bool, str]:
     """Call a std_srvs/Trigger service, retrying while it refuses, until it succeeds or time runs out."""
-    import rclpy  # noqa: PLC0415
     from std_srvs.srv import Trigger  # noqa: PLC0415
 
-    client = node.create_client(Trigger, service)
+    return _call_until_success(node, Trigger, service, Trigger.Request(), timeout_s)
+
+
+def call_set_bool(node: Any, service: str, value: bool, timeout_s: float = 10.0) -> tuple[bool, str]:
+    """Call a std_srvs/SetBool service, retrying while it refuses, until it succeeds or time runs out."""
+    from std_srvs.srv import SetBool  # noqa: PLC0415
+
+    return _call_until_success(node, SetBool, service, SetBool.Request(data=value), timeout_s)
+
+
+def _call_until_success(node: Any, kind: Any, service: str, request: Any, timeout_s: float) -> tuple[bool, str]:
+    import rclpy  # noqa: PLC0415
+
+    client = node.create_client(kind, service)
     deadline = time.monotonic() + timeout_s
     answer = (False, f"{service} not available")
     try:
         while time.monotonic() < deadline:
             if not client.wait_for_service(timeout_sec=0.2):
                 continue
-            future = client.call_async(Trigger.Request())
+            future = client.call_async(request)
             rclpy.spin_until_future_complete(node, future, timeout_sec=max(0.1, deadline - time.monotonic()))
             if future.done():
                 answer = (future.result().success, future.result().message)
@@ -89,6 +101,8 @@ def up(bringup: Bringup, duration_s: float | None, log_root: Path, start: bool =
         else:
             print(f"rh5 up: {len(names)} nodes running: {', '.join(sorted(names))}", flush=True)
             if start:
+                _, message = call_set_bool(observer, f"{namespace.rstrip('/')}/driver/enable", True)
+                print(f"rh5 up: driver enable: {message}", flush=True)
                 _, message = call_trigger(observer, f"{namespace.rstrip('/')}/stabilizer/start")
                 print(f"rh5 up: stabilizer start: {message}", flush=True)
         deadline = None if duration_s is None else time.monotonic() + duration_s

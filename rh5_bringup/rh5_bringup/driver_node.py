@@ -1,83 +1,181 @@
-"""The driver node: the 1 kHz link between actuator_commands/actuator_states and the boards.
+"""The driver node: the 1 kHz link between the ROS graph and the actuator boards (NDLCom over UDP or CAN).
 
-At this stage no board transport exists: ``~/enable``, ``~/estop`` and ``~/reset_estop``
-keep their latching semantics, and the node publishes the latest command as the
-measured state (ideal hardware, standing in the nominal pose until the first command)
-every millisecond. The NDLCom transports and the
-dedicated 1 kHz loop replace the echo with the hardware-layer issue.
+A dedicated loop thread runs DriverCore every millisecond and publishes ``actuator_states``
+each cycle; ``actuator_commands`` are validated in their callback and handed to the loop
+through a latest-value slot. ``~/enable`` (SetBool), ``~/estop`` (latching) and
+``~/reset_estop`` switch what the boards are told; the latch is also published on
+``driver/estopped``. ``/diagnostics`` at 1 Hz: loop timing, safety state, per-board frame
+statistics and errors.
 """
 
 from __future__ import annotations
 
-from typing import Any
+import time
+from typing import Any, Final
 
 import numpy as np
 from std_msgs.msg import Bool
 from std_srvs.srv import SetBool, Trigger
 
+from rh5_bringup.driver import ActuatorCommand, DriverCore, Limits
+from rh5_bringup.ndlcom.board_map import load_board_map
+from rh5_bringup.transports import open_transport
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py import interfaces
-from rh5_msgs_py.conversions import joint_state_to_msg
-from rh5_msgs_py.names import ACTUATOR_NAMES, JOINT_NAMES
+from rh5_msgs_py.conversions import JointStateCodec, Level, Status, diagnostics_to_msg
+from rh5_msgs_py.names import ACTUATOR_NAMES
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
 from rh5_msgs_py.realtime import DeadlineLoop
 
+DIAGNOSTICS_PERIOD_S: Final = 1.0
+
+
+def actuator_limits() -> Limits:
+    """The stroke, speed and force limits of every actuator (the mapper's, from the paper's tables)."""
+    mapper = robot_mapper()
+    return Limits(mapper.length_min, mapper.length_max, mapper.velocity_max, mapper.force_max)
+
 
 class DriverNode(SuiteNode):
-    """Enable/estop state machine plus an ideal-hardware echo."""
+    """ROS wiring around DriverCore and its 1 kHz loop."""
 
     def __init__(self) -> None:
         super().__init__(interfaces.DRIVER_NODE, "rh5_bringup", "params/driver.yaml")
-        self.enabled = False
-        self.estopped = False
-        # Ideal hardware standing still in the nominal pose until the first command arrives.
-        standing = robot_mapper().to_actuators(np.zeros(len(JOINT_NAMES))).position
-        self._latest: Any = joint_state_to_msg(ACTUATOR_NAMES, standing, np.zeros(len(ACTUATOR_NAMES)))
+        params = self.params
+        board_map = load_board_map(params["board_map"] or None)
+        if params["transport"] == "udp":
+            host = params["router_host"]
+            local = (
+                "127.0.0.1" if host.startswith("127.") else "0.0.0.0",
+                0,
+            )  # any interface: the router is on the robot network
+            transport = open_transport(
+                "udp", local=local, remote=(host, params["router_port"]), receivers=[board_map.pc_address]
+            )
+        else:
+            transport = open_transport(
+                "can",
+                interface=params["can_interface"],
+                channel=params["can_channel"],
+                receivers=[board_map.pc_address],
+            )
+        self.transport = transport
+        self.core = DriverCore(
+            board_map,
+            transport,
+            actuator_limits(),
+            command_timeout_ns=int(params["command_timeout_s"] * 1e9),
+            silence_timeout_ns=int(params["board_silence_timeout_s"] * 1e9),
+            on_event=self._on_event,
+        )
+        self._command_codec = JointStateCodec(ACTUATOR_NAMES, what="actuator_commands")
+        self._state_codec = JointStateCodec(ACTUATOR_NAMES)
         self._publish_states = self.advertise(interfaces.ACTUATOR_STATES)
         self._publish_estop = self.advertise(interfaces.DRIVER_ESTOP)
+        self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
         self._publish_estop(Bool(data=False))
         self.subscribe(interfaces.ACTUATOR_COMMANDS, self._on_command)
         self.create_service(SetBool, interfaces.ENABLE_SERVICE, self._on_enable)
         self.create_service(Trigger, interfaces.ESTOP_SERVICE, self._on_estop)
         self.create_service(Trigger, interfaces.RESET_ESTOP_SERVICE, self._on_reset_estop)
-        self.loop = DeadlineLoop(self.params["rate_hz"], self._tick, name="driver-echo")
-        self.context.on_shutdown(self.loop.stop)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
+        self.loop = DeadlineLoop(params["rate_hz"], self._tick, name="driver-1kHz")
+        self.context.on_shutdown(self.loop.stop)  # SIGINT shuts the context down before the node is destroyed
         self.loop.start()
 
-    def _on_command(self, msg: Any) -> None:
-        self._latest = msg
+    def _on_event(self, text: str) -> None:
+        self.get_logger().error(text)
 
-    def _tick(self, _now_ns: int, _period_ns: int) -> None:
-        self._publish_states(self._latest)
+    def _on_command(self, msg: Any) -> None:
+        try:
+            position, velocity, effort = self._command_codec.decode(msg)
+        except ValueError as err:
+            self.core.counts["rejected_commands"] += 1
+            self.get_logger().warning(f"actuator_commands rejected: {err}", throttle_duration_sec=1.0)
+            return
+        n = len(ACTUATOR_NAMES)
+        velocity = np.zeros(n) if velocity is None else velocity
+        effort = np.zeros(n) if effort is None else effort
+        if position is None or not all(np.isfinite(x).all() for x in (position, velocity, effort)):
+            self.core.counts["rejected_commands"] += 1
+            self.get_logger().warning(
+                "actuator_commands rejected: missing positions, NaN or inf", throttle_duration_sec=1.0
+            )
+            return
+        self.core.command.set(ActuatorCommand(position, velocity, effort), time.monotonic_ns())
+
+    def _tick(self, now_ns: int, period_ns: int) -> None:
+        readings = self.core.cycle(now_ns, period_ns)
+        self._publish_states(
+            self._state_codec.encode(readings.position, readings.velocity, readings.effort, stamp_ns=time.time_ns())
+        )
 
     def _on_enable(self, request: Any, response: Any) -> Any:
-        if request.data and self.estopped:
-            response.success, response.message = False, "refused: emergency stop is latched (call ~/reset_estop)"
-            return response
-        self.enabled = bool(request.data)
-        response.success, response.message = True, "enabled" if self.enabled else "disabled"
+        response.success, response.message = self.core.enable(bool(request.data))
         return response
 
     def _on_estop(self, _request: Any, response: Any) -> Any:
-        self.estopped, self.enabled = True, False
+        self.core.estop()
         self._publish_estop(Bool(data=True))
+        self.get_logger().error("emergency stop latched: every board holds")
         response.success, response.message = True, "emergency stop latched; boards hold"
         return response
 
     def _on_reset_estop(self, _request: Any, response: Any) -> Any:
-        self.estopped = False
+        self.core.reset_estop()
         self._publish_estop(Bool(data=False))
         response.success, response.message = True, "emergency stop cleared; call ~/enable to drive again"
         return response
 
-    def destroy_node(self) -> None:
-        """Stop the loop thread before the node goes away."""
-        self.loop.stop()
-        super().destroy_node()
+    def _publish_status(self) -> None:
+        core = self.core
+        values: dict[str, object] = {
+            "mode": core.mode.name,
+            "enabled": core.enabled,
+            "estopped": core.estopped,
+            "safe_hold": core.safe_hold_reason,
+        }
+        values.update({f"loop.{k}": v for k, v in self.loop.stats().as_dict().items()})
+        values.update({f"count.{k}": v for k, v in core.counts.items()})
+        values.update({f"clamped.{k}": v for k, v in core.clamped.items()})
+        decoder = self.transport.stats().decoder
+        values["garbage_bytes"] = decoder.garbage_bytes
+        for board in core.board_map:
+            stats = decoder.senders.get(board.address)
+            if stats is not None and (stats.crc_errors or stats.lost or stats.malformed or stats.oversize):
+                values[f"board.{board.name}"] = (
+                    f"frames={stats.frames} crc={stats.crc_errors} lost={stats.lost} "
+                    f"malformed={stats.malformed} oversize={stats.oversize}"
+                )
+        errors = [core.board_map.boards[i].name for i in np.flatnonzero(core.readings.errors)]
+        if errors:
+            values["board_errors"] = ", ".join(errors)
+        if core.safe_hold_reason or self.loop.error is not None:
+            level, message = Level.ERROR, core.safe_hold_reason or f"loop died: {self.loop.error!r}"
+        elif core.estopped:
+            level, message = Level.WARN, "emergency stop latched"
+        else:
+            level, message = Level.OK, "driving" if core.enabled else "boards hold (not enabled)"
+        status = Status("rh5/driver", level, message, values, hardware_id="rh5")
+        self._publish_diagnostics(diagnostics_to_msg([status], stamp_ns=self.get_clock().now().nanoseconds))
 
     def summary(self) -> dict[str, Any]:
-        """Adds the enable/estop state to the base summary."""
-        return {**super().summary(), "enabled": self.enabled, "estopped": self.estopped}
+        """Adds the safety state, counters and loop timing to the base summary."""
+        return {
+            **super().summary(),
+            "enabled": self.core.enabled,
+            "estopped": self.core.estopped,
+            "safe_hold": self.core.safe_hold_reason,
+            "counts": dict(self.core.counts),
+            "clamped": dict(self.core.clamped),
+            "loop": self.loop.stats().as_dict(),
+        }
+
+    def destroy_node(self) -> None:
+        """Stop the loop, then close the link to the boards."""
+        self.loop.stop()
+        self.transport.shutdown()
+        super().destroy_node()
 
 
 def main(args: list[str] | None = None) -> None:

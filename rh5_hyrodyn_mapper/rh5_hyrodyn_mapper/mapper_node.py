@@ -25,30 +25,9 @@ from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec, Level, Status, diagnostics_to_msg, time_to_ns
 from rh5_msgs_py.names import ACTUATOR_NAMES, JOINT_NAMES
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
+from rh5_msgs_py.realtime import LatencyWindow
 
 DIAGNOSTICS_PERIOD_S: Final = 1.0
-TIMING_WINDOW: Final = 2000  # callbacks kept for the latency percentiles (2 s at 1 kHz per direction)
-
-
-class LatencyWindow:
-    """Processing times of the latest callbacks, for p50/p99/max on /diagnostics."""
-
-    def __init__(self, size: int = TIMING_WINDOW) -> None:
-        self._ns = np.zeros(size, dtype=np.int64)
-        self._count = 0
-
-    def add(self, ns: int) -> None:
-        """Record one callback's processing time."""
-        self._ns[self._count % len(self._ns)] = ns
-        self._count += 1
-
-    def percentiles_us(self) -> dict[str, float]:
-        """p50, p99 and max of the window in microseconds (empty window: zeros)."""
-        window = self._ns[: min(self._count, len(self._ns))]
-        if not len(window):
-            return {"p50_us": 0.0, "p99_us": 0.0, "max_us": 0.0}
-        p50, p99 = np.percentile(window, [50, 99]) / 1e3
-        return {"p50_us": float(p50), "p99_us": float(p99), "max_us": float(window.max() / 1e3)}
 
 
 class MapperNode(SuiteNode):

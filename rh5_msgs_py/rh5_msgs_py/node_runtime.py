@@ -87,7 +87,11 @@ def run_node(factory: Callable[[], SuiteNode], args: list[str] | None = None) ->
         pass
     except Exception as err:
         if node is not None:
-            raise
+            if rclpy.ok():
+                raise
+            # SIGINT shut the context down under a callback in flight (e.g. a message being taken): stopping anyway
+            print(f"ignored during shutdown: {err!r}", file=sys.stderr, flush=True)
+            return
         print(f"cannot start: {err}", file=sys.stderr, flush=True)
         rclpy.try_shutdown()
         sys.exit(EXIT_BAD_START)

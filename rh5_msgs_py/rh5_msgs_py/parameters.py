@@ -145,7 +145,12 @@ def declare_parameters(node: Node, specs: Iterable[ParamSpec]) -> None:
     """Declare every spec on ``node`` and refuse later sets that break a spec, with the reason."""
     by_name = {}
     for spec in specs:
-        node.declare_parameter(spec.name, spec.default, spec.descriptor())
+        descriptor = spec.descriptor()
+        if spec.is_array and not spec.default:
+            # rclpy types an empty list as BYTE_ARRAY and would then refuse a string list: the spec's own
+            # check (in the on-set callback below) enforces the element type instead.
+            descriptor.dynamic_typing = True
+        node.declare_parameter(spec.name, spec.default, descriptor)
         by_name[spec.name] = spec
         if problem := spec.check(node.get_parameter(spec.name).value):
             # A value given at launch (--ros-args -p / params file) overrides the default.

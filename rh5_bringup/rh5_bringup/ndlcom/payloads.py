@@ -40,6 +40,7 @@ __all__ = [
     "encode_command",
     "encode_commands",
     "encode_telemetry",
+    "encode_telemetry_many",
     "payload_type",
 ]
 
@@ -499,3 +500,33 @@ def decode_telemetry_many(payloads: Sequence[bytes], table: ScalingTable) -> Tel
         rec["current"] * CURRENT_LSB,
         rec["temperature"] * TEMPERATURE_LSB,
     )
+
+
+def encode_telemetry_many(telemetry: TelemetryArrays, table: ScalingTable) -> list[bytes]:
+    """TELEMETRY v1 payloads for n boards at once (the simulated boards' side); the bytes of ``encode_telemetry``.
+
+    :raises PayloadError: a non-finite value or one its field cannot hold, naming the first offending board.
+    """
+    n = len(table)
+    values = np.array(
+        [telemetry.position, telemetry.velocity, telemetry.effort, telemetry.current, telemetry.temperature],
+        dtype=float,
+    )
+    if values.shape != (5, n):
+        raise PayloadError(f"telemetry must have {n} values per field")
+    lsb = np.vstack([table.lsb, np.full((1, n), CURRENT_LSB), np.full((1, n), TEMPERATURE_LSB)])
+    raw = np.rint(values / lsb)
+    bounds = np.array([[INT32_MIN, INT32_MAX]] * 4 + [[INT16_MIN, INT16_MAX]], dtype=float)
+    ok = np.isfinite(raw) & (raw >= bounds[:, :1]) & (raw <= bounds[:, 1:])
+    if not ok.all():
+        row, col = np.argwhere(~ok)[0]
+        field = ("position", "velocity", "effort", "current", "temperature")[row]
+        raise PayloadError(f"{table.names[col]}: telemetry {field} = {values[row, col]!r} cannot be encoded")
+    out = np.zeros(n, dtype=TELEMETRY_DTYPE)
+    out["type"], out["version"] = PayloadType.TELEMETRY, TELEMETRY_VERSION
+    out["mode"], out["status"], out["errors"] = telemetry.mode, telemetry.status, telemetry.errors
+    out["sequence"], out["board_time_us"] = telemetry.sequence, telemetry.board_time_us
+    out["position"], out["velocity"], out["effort"], out["current"] = raw[:4].astype(np.int32)
+    out["temperature"] = raw[4].astype(np.int16)
+    blob, size = out.tobytes(), TELEMETRY_LAYOUT.size
+    return [blob[i : i + size] for i in range(0, n * size, size)]

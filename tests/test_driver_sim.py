@@ -1,0 +1,283 @@
+"""The hardware layer at 1 kHz over real UDP on 127.0.0.1: the driver against the simulated-hardware node.
+
+First the driver's cycle (DriverCore in this process, on its own deadline loop) against the
+sim_hardware node in its own process, one test per safety rule with its timing; then both
+nodes as processes, driven through their ROS interface.
+"""
+
+from __future__ import annotations
+
+import socket
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from rh5_bringup.cli import call_trigger
+from rh5_bringup.driver_node import actuator_limits
+from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
+from rh5_bringup.ndlcom.board_map import load_board_map
+from rh5_bringup.ndlcom.payloads import CommandMode
+from rh5_bringup.rig import LINEAR, SINE_AMPLITUDE, DriverLoop, sine_centre
+from rh5_bringup.transports import open_transport
+from rh5_hyrodyn_mapper.mapping import robot_mapper
+from rh5_msgs_py import interfaces
+from rh5_msgs_py.conversions import diagnostics_from_msg, joint_state_from_msg, joint_state_to_msg
+from rh5_msgs_py.names import ACTUATOR_INDEX, ACTUATOR_NAMES, NUM_JOINTS
+from rh5_msgs_py.realtime import DeadlineLoop
+
+pytestmark = pytest.mark.ros
+
+LIMITS = actuator_limits()
+CENTRE = sine_centre(robot_mapper().to_actuators(np.zeros(NUM_JOINTS)).position, LIMITS)
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def set_parameters(node: Any, target: str, **values: Any) -> None:
+    """Set parameters of another node through its SetParameters service."""
+    import rclpy
+    from rcl_interfaces.srv import SetParameters
+    from rclpy.parameter import Parameter
+
+    client = node.create_client(SetParameters, f"/{target}/set_parameters")
+    assert client.wait_for_service(timeout_sec=10.0)
+    params = [
+        Parameter(k, Parameter.Type.STRING_ARRAY, v) if isinstance(v, list) else Parameter(k, value=v)
+        for k, v in values.items()
+    ]
+    request = SetParameters.Request(parameters=[p.to_parameter_msg() for p in params])
+    future = client.call_async(request)
+    rclpy.spin_until_future_complete(node, future, timeout_sec=10.0)
+    assert all(r.successful for r in future.result().results), future.result().results
+    node.destroy_client(client)
+
+
+@pytest.fixture(scope="module")
+def boards(ros_graph: Any, ros_test_environment: dict[str, str]) -> Iterator[tuple[int, SuiteRun]]:
+    """The sim_hardware node listening on a free UDP port."""
+    port = free_udp_port()
+    spec = NodeSpec("sim_hardware", "rh5_bringup", "sim_hardware_node", {"listen_port": port})
+    log_dir = Path(ros_test_environment["ROS_LOG_DIR"]) / "driver_sim"
+    with SuiteRun(Bringup("", (spec,)), log_dir, int(ros_test_environment["ROS_DOMAIN_ID"])) as run:
+        assert wait_for_nodes(ros_graph, {"sim_hardware"}) == set()
+        yield port, run
+    assert run.processes[0].process.returncode == 0
+    summary = run.processes[0].summary()
+    assert summary["counts"].get("bad_commands", 0) == 0  # nothing unencodable ever reached the boards
+
+
+SILENCE_TIMEOUT_NS = 5_000_000  # the rule's value on the robot
+
+
+@pytest.fixture
+def driver(request: pytest.FixtureRequest, boards: tuple[int, SuiteRun]) -> Iterator[DriverLoop]:
+    """A driver cycle at 1 kHz against the boards, enabled and commanding the sine.
+
+    Only the silence test keeps the 5 ms silence rule: this 2-core virtual machine deschedules the
+    emulator process for a few ms now and then, which is a silence the rule rightly acts on, and
+    would end the other tests for a reason that is not theirs (they get 50 ms).
+    """
+    port, _ = boards
+    board_map = load_board_map()
+    link = open_transport("udp", local=("127.0.0.1", 0), remote=("127.0.0.1", port), receivers=[board_map.pc_address])
+    silence = SILENCE_TIMEOUT_NS if "silent_board" in request.node.name else 10 * SILENCE_TIMEOUT_NS
+    rig = DriverLoop(board_map, link, LIMITS, CENTRE, silence_timeout_ns=silence)
+    rig.loop.start()
+    time.sleep(0.05)  # the boards learn where the driver is
+    assert rig.core.enable(True)[0]
+    try:
+        yield rig
+    finally:
+        rig.loop.stop()
+        link.shutdown()
+
+
+def test_sine_on_every_actuator_is_tracked(driver: DriverLoop) -> None:
+    """Bound: with velocity feed-forward the boards' cascade follows the 0.5 Hz sine within microns
+    (sim/actuators tests); the reading is one to two cycles old (A w 2 ms = 31 um at 5 mm); this
+    virtual machine stalls every process for up to ~5 ms now and then, and a stalled emulator lets
+    the reference run away for that long: 1 mm and 10 mrad."""
+    time.sleep(3.0)
+    errors = driver.tracking_error()
+    context = (driver.core.safe_hold_reason, dict(driver.core.counts), driver.events, driver.loop.stats())
+    assert errors[LINEAR].max() < 1e-3, context
+    assert errors[~LINEAR].max() < 10e-3, dict(zip(ACTUATOR_NAMES, errors.round(6), strict=True))
+    assert driver.loop.stats().rate_hz > 900.0  # the 999.5 Hz target is bench/driver.py's
+    assert not driver.core.safe_hold_reason
+    assert driver.core.latency.percentiles_us()["p50_us"] < 2000.0  # command -> board -> reading (bench: p99)
+
+
+def test_a_silent_board_puts_the_robot_in_safe_hold_within_5_ms(driver: DriverLoop, ros_graph: Any) -> None:
+    knee = ACTUATOR_INDEX["LLKnee_Act1"]
+    time.sleep(0.3)
+    driver.events.clear()
+    assert driver.core.enable(True)[0]  # clears a safe hold a stall of the emulator may have caused so far
+    try:
+        set_parameters(ros_graph, "sim_hardware", silent_boards=["LLKnee_Act1"])
+        time.sleep(0.3)
+        last_heard = int(driver.core.heard_ns[knee])
+        ok, reason = driver.core.enable(True)
+    finally:
+        set_parameters(ros_graph, "sim_hardware", silent_boards=[])
+    events = [(at, text) for at, text in driver.events if at > last_heard]
+    assert events, "no safe-hold event"
+    reaction_ms = (events[0][0] - last_heard) / 1e6
+    assert "LLKnee_Act1" in events[0][1]
+    assert 5.0 <= reaction_ms <= 10.0  # 5 ms and 5 of our cycles (a stalled machine stretches it), + 1 cycle
+    assert driver.core.mode == CommandMode.HOLD
+    assert not ok
+    assert "LLKnee_Act1" in reason
+
+
+def test_stale_commands_make_the_boards_hold(driver: DriverLoop) -> None:
+    time.sleep(0.5)
+    driver.commanding = False
+    stopped_at = time.monotonic_ns()
+    time.sleep(0.2)
+    t, _, measured = driver.history()
+    assert driver.core.mode == CommandMode.HOLD
+    assert driver.core.counts["stale_command_cycles"] >= 150  # 180 cycles after the 20 ms timeout
+    holding = measured[t > stopped_at + 40_000_000]
+    assert np.abs(holding - holding[0]).max() < 2e-4  # the boards hold where they were
+
+
+def test_estop_holds_and_latches_until_reset(driver: DriverLoop) -> None:
+    time.sleep(0.3)
+    driver.core.estop()
+    time.sleep(0.05)
+    assert driver.core.mode == CommandMode.HOLD
+    assert driver.core.enable(True) == (False, "refused: emergency stop is latched (call ~/reset_estop)")
+    driver.core.reset_estop()
+    assert driver.core.enable(True)[0]
+    time.sleep(0.05)
+    assert driver.core.mode == CommandMode.POSITION_FF
+
+
+def test_setpoints_beyond_the_stroke_are_clamped_and_counted(driver: DriverLoop) -> None:
+    knee = ACTUATOR_INDEX["LRKnee_Act1"]
+    driver.offset[knee] = 0.5  # far beyond the 391 mm stroke end
+    time.sleep(1.5)
+    _, _, measured = driver.history()
+    limit = LIMITS.position_max[knee]
+    assert measured[:, knee].max() <= limit + 1e-6
+    assert measured[-1, knee] == pytest.approx(limit, abs=1e-3)
+    assert driver.core.clamped["LRKnee_Act1"] > 1200
+    driver.offset[knee] = 0.0
+
+
+def test_lost_and_corrupted_telemetry_is_counted_not_fatal(driver: DriverLoop, ros_graph: Any) -> None:
+    try:
+        set_parameters(ros_graph, "sim_hardware", drop_rate=0.01, corrupt_crc_rate=0.01)
+        time.sleep(1.0)
+    finally:
+        set_parameters(ros_graph, "sim_hardware", drop_rate=0.0, corrupt_crc_rate=0.0)
+    stats = driver.core.transport.stats().decoder
+    assert sum(s.crc_errors for s in stats.senders.values()) > 100  # ~320 expected in 1 s
+    assert sum(s.lost for s in stats.senders.values()) > 100  # dropped frames show as counter gaps
+
+
+class CommandSource:
+    """Publishes a sine on actuator_commands at 1 kHz and records actuator_states, as the mapper would."""
+
+    def __init__(self, node: Any) -> None:
+        from sensor_msgs.msg import JointState
+
+        self.node = node
+        self.states: list[tuple[int, np.ndarray]] = []
+        self.bad = False
+        self._t0 = time.monotonic_ns()
+        self._publisher = node.create_publisher(JointState, interfaces.ACTUATOR_COMMANDS.name, interfaces.STREAM_QOS)
+        node.create_subscription(JointState, interfaces.ACTUATOR_STATES.name, self._on_states, interfaces.STREAM_QOS)
+        self.loop = DeadlineLoop(1000.0, self._publish, "test-commands")
+
+    def reference(self, now_ns: int) -> tuple[np.ndarray, np.ndarray]:
+        w, t = np.pi, (now_ns - self._t0) / 1e9
+        return CENTRE + SINE_AMPLITUDE * np.sin(w * t), SINE_AMPLITUDE * w * np.cos(w * t)
+
+    def _publish(self, now_ns: int, _period: int) -> None:
+        position, velocity = self.reference(now_ns)
+        if self.bad:
+            position = position.copy()
+            position[4] = np.nan
+        self._publisher.publish(joint_state_to_msg(ACTUATOR_NAMES, position, velocity, np.zeros(len(position))))
+
+    def _on_states(self, msg: Any) -> None:
+        self.states.append((time.monotonic_ns(), joint_state_from_msg(msg, ACTUATOR_NAMES).position))
+
+    def spin_for(self, seconds: float) -> None:
+        import rclpy
+
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            rclpy.spin_once(self.node, timeout_sec=0.01)
+
+
+def test_driver_node_and_sim_node_through_ros(
+    boards: tuple[int, SuiteRun], ros_graph: Any, ros_test_environment: dict[str, str]
+) -> None:
+    """actuator_commands -> driver node -> UDP -> sim node -> UDP -> driver node -> actuator_states."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from std_msgs.msg import Bool
+    from std_srvs.srv import SetBool
+
+    port, _ = boards
+    statuses: list[Any] = []
+    latch: list[bool] = []
+    ros_graph.create_subscription(
+        DiagnosticArray,
+        "/diagnostics",
+        lambda m: statuses.extend(s for s in diagnostics_from_msg(m) if s.name == "rh5/driver"),
+        interfaces.EVENT_QOS,
+    )
+    ros_graph.create_subscription(
+        Bool, interfaces.DRIVER_ESTOP.name, lambda m: latch.append(m.data), interfaces.LATCHED_QOS
+    )
+    source = CommandSource(ros_graph)
+    # 50 ms silence timeout: the 5 ms rule has its timing test above; here the boards share two cores with
+    # this process's 1 kHz publisher, and a stall of the emulator would stop the test, not the point of it.
+    spec = NodeSpec("driver", "rh5_bringup", "driver_node", {"router_port": port, "board_silence_timeout_s": 0.05})
+    log_dir = Path(ros_test_environment["ROS_LOG_DIR"]) / "driver_node"
+    source.loop.start()
+    try:
+        with SuiteRun(Bringup("", (spec,)), log_dir, int(ros_test_environment["ROS_DOMAIN_ID"])) as run:
+            assert wait_for_nodes(ros_graph, {"driver"}) == set()
+            client = ros_graph.create_client(SetBool, "/driver/enable")
+            assert client.wait_for_service(timeout_sec=10.0)
+            import rclpy
+
+            future = client.call_async(SetBool.Request(data=True))
+            rclpy.spin_until_future_complete(ros_graph, future, timeout_sec=10.0)
+            assert future.result().success, future.result().message
+            source.states.clear()
+            source.spin_for(2.5)
+            times = np.array([t for t, _ in source.states])
+            states = np.array([s for _, s in source.states])
+            source.bad = True
+            source.spin_for(0.3)
+            source.bad = False
+            ok, message = call_trigger(ros_graph, "/driver/estop")
+            source.spin_for(1.3)
+    finally:
+        source.loop.stop()
+    summary = run.processes[0].summary()
+    assert run.processes[0].process.returncode == 0
+    assert (ok, message) == (True, "emergency stop latched; boards hold")
+    assert latch[-1] is True
+    # This process both publishes at 1 kHz and spins: it takes what it can; the node itself published every cycle.
+    assert len(states) > 500, f"{len(states)} actuator_states in 2.5 s"
+    assert summary["sent"]["actuator_states"] >= 0.95 * summary["loop"]["cycles"]
+    late = times > times[0] + 1e9
+    references = np.array([source.reference(t)[0] for t in times[late]])
+    errors = np.abs(states[late] - references).max(axis=0)
+    # The reading is a DDS hop plus a board cycle plus a DDS hop old (a few ms: A w 5 ms = 80 um at 5 mm).
+    assert errors[LINEAR].max() < 1e-3
+    assert summary["counts"]["rejected_commands"] >= 50  # 0.3 s of NaN commands (best effort) never reached a board
+    assert any(s.values.get("estopped") == "True" and s.level == 1 for s in statuses)
