@@ -123,6 +123,11 @@ class DriverCore:
 
     # --- the cycle ---------------------------------------------------------------------------------------------------
 
+    @property
+    def all_heard(self) -> bool:
+        """Whether every board has answered at least once (before that the readings are partly unknown)."""
+        return bool(self.heard_ns.all())
+
     def silent_boards(self, now_ns: int) -> list[str]:
         """Boards not heard from for longer than the silence timeout, counted in time and in our own cycles.
 

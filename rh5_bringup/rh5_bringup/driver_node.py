@@ -106,6 +106,8 @@ class DriverNode(SuiteNode):
 
     def _tick(self, now_ns: int, period_ns: int) -> None:
         readings = self.core.cycle(now_ns, period_ns)
+        if not self.core.all_heard:
+            return  # no actuator_states until every board has reported once (no made-up zeros downstream)
         self._publish_states(
             self._state_codec.encode(readings.position, readings.velocity, readings.effort, stamp_ns=time.time_ns())
         )

@@ -22,7 +22,8 @@ import numpy as np
 T = TypeVar("T")
 PR_SET_TIMERSLACK = 29
 
-SPIN_NS = 100_000  # busy-wait this long before each deadline (sleeps here overshoot by 50 us p50, 270 us p99)
+SPIN_NS = 50_000  # busy-wait this long before each deadline (sleeps here overshoot by 50 us p50, 270 us p99;
+# spinning through that would cost each 1 kHz loop a third of a core on a machine that has two)
 TIMER_SLACK_NS = 1_000  # Linux's default 50 us timer slack would be most of the jitter budget
 GIL_SWITCH_INTERVAL_S = 5e-5  # CPython's default 5 ms would let an executor thread delay a tick by 5 ms
 STATS_WINDOW = 1000  # cycles kept for the jitter percentiles (1 s at 1 kHz)
