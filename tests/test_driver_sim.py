@@ -264,6 +264,9 @@ def test_driver_node_and_sim_node_through_ros(
             source.bad = True
             source.spin_for(0.3)
             source.bad = False
+            set_parameters(ros_graph, "sim_hardware", silent_boards=["LLKnee_Act1"])
+            source.spin_for(1.3)
+            set_parameters(ros_graph, "sim_hardware", silent_boards=[])
             ok, message = call_trigger(ros_graph, "/driver/estop")
             source.spin_for(1.3)
     finally:
@@ -281,4 +284,5 @@ def test_driver_node_and_sim_node_through_ros(
     # The reading is a DDS hop plus a board cycle plus a DDS hop old (a few ms: A w 5 ms = 80 um at 5 mm).
     assert errors[LINEAR].max() < 1e-3
     assert summary["counts"]["rejected_commands"] >= 50  # 0.3 s of NaN commands (best effort) never reached a board
-    assert any(s.values.get("estopped") == "True" and s.level == 1 for s in statuses)
+    assert any(s.level == 2 and "LLKnee_Act1" in s.message for s in statuses)  # the silent board: an ERROR
+    assert any(s.values.get("estopped") == "True" for s in statuses)
