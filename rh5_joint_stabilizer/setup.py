@@ -19,7 +19,7 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(exclude=["test"]),
-    package_data={"": ["*.yaml", "params/*.yaml", "*.json", "py.typed"]},
+    package_data={"": ["*.yaml", "params/*.yaml", "config/*.yaml", "*.json", "py.typed"]},
     include_package_data=True,
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),

@@ -1,0 +1,101 @@
+"""Planner benchmark: solve time, iterations and ms per knot-iteration of every motion, against Talos walking.
+
+Run: ``.venv/bin/python bench/planner.py [--motions a,b] [--repeat N] [--nthreads 2] [--max-iterations 200]``.
+
+The reference is Crocoddyl's own full-Talos walking problem from example-robot-data, built with
+``crocoddyl.utils.biped`` here in the bench only (that module is not API; the planner does not use it), with
+the parameters of design/crocoddyl_wheels.md (0.6 m, 0.1 m, dt 0.03, 25 step knots, 2 support knots). Our
+motions print ms per knot-iteration as a ratio to Talos's (target <= 1.0) and the median solve time of
+walk_with_5kg_weights (target <= 2 s). Times are wall-clock of ``solve()`` only; the 2-vCPU machine is noisy,
+so minima and medians are both printed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import crocoddyl  # before pinocchio (design/crocoddyl_wheels.md)
+import numpy as np
+
+from rh5_planner.motions import MOTIONS, VERIFIED_MOTIONS, get_motion
+from rh5_planner.problem import SolverSettings, solve
+
+
+def talos_walk(nthreads: int, max_iterations: int) -> dict[str, float]:
+    """Crocoddyl's full-Talos walking problem, solved like ours (BoxFDDP, quasi-static warm start)."""
+    import example_robot_data  # noqa: PLC0415
+    from crocoddyl.utils.biped import SimpleBipedGaitProblem  # noqa: PLC0415
+
+    talos = example_robot_data.load("talos")
+    gait = SimpleBipedGaitProblem(talos.model, "right_sole_link", "left_sole_link")
+    q0 = talos.model.referenceConfigurations["half_sitting"].copy()
+    x0 = np.concatenate([q0, np.zeros(talos.model.nv)])
+    problem = gait.createWalkingProblem(x0, 0.6, 0.1, 0.03, 25, 2)
+    problem.nthreads = nthreads
+    solver = crocoddyl.SolverBoxFDDP(problem)
+    solver.th_stop = 1e-7
+    xs = [x0] * (problem.T + 1)
+    us = problem.quasiStatic([x0] * problem.T)
+    start = time.perf_counter()
+    solver.solve(xs, us, max_iterations, False)
+    elapsed = time.perf_counter() - start
+    iterations = max(1, solver.iter)
+    return {
+        "solve_time_s": elapsed,
+        "iterations": solver.iter,
+        "knots": problem.T,
+        "ms_per_knot_iteration": 1e3 * elapsed / (problem.T * iterations),
+        "converged": solver.stop <= 1e-7,
+    }
+
+
+def main() -> None:
+    """Run the benchmark and print one row per motion."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    default = sorted(VERIFIED_MOTIONS | {"walk_with_5kg_weights", "fast_squats"})
+    parser.add_argument("--motions", default=",".join(default))
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--nthreads", type=int, default=2)
+    parser.add_argument("--max-iterations", type=int, default=200)
+    parser.add_argument("--stop-threshold", type=float, default=1e-5)
+    args = parser.parse_args()
+    names = [n for n in args.motions.split(",") if n]
+    for name in names:
+        if name not in MOTIONS:
+            parser.error(f"unknown motion {name!r}; known: {sorted(MOTIONS)}")
+
+    talos_runs = [talos_walk(args.nthreads, args.max_iterations) for _ in range(args.repeat)]
+    talos_ms = statistics.median(r["ms_per_knot_iteration"] for r in talos_runs)
+    print(
+        f"talos_walk (reference): knots {talos_runs[0]['knots']}, iterations {talos_runs[0]['iterations']}, "
+        f"solve min/median {min(r['solve_time_s'] for r in talos_runs):.3f}/"
+        f"{statistics.median(r['solve_time_s'] for r in talos_runs):.3f} s, {talos_ms:.3f} ms per knot-iteration"
+    )
+    settings = SolverSettings(
+        max_iterations=args.max_iterations, stop_threshold=args.stop_threshold, nthreads=args.nthreads
+    )
+    columns = ("knots", 5), ("iter", 5), ("conv", 5), ("min s", 7), ("med s", 7), ("ms/k-it", 8), ("ratio", 6)
+    print(f"{'motion':26s} " + " ".join(f"{c:>{w}s}" for c, w in columns))
+    walk_median = None
+    for name in names:
+        results = [solve(get_motion(name), settings) for _ in range(args.repeat)]
+        logs = [r.solver_log for r in results]
+        times = [log["solve_time_s"] for log in logs]
+        ms = statistics.median(log["ms_per_knot_iteration"] for log in logs)
+        median = statistics.median(times)
+        if name == "walk_with_5kg_weights":
+            walk_median = median
+        print(
+            f"{name:26s} {logs[0]['knots']:5d} {logs[0]['iterations']:5d} {logs[0]['converged']!s:>5s} "
+            f"{min(times):7.3f} {median:7.3f} {ms:8.3f} {ms / talos_ms:6.2f}"
+        )
+    print("ratio = our ms per knot-iteration / Talos's (target <= 1.0)")
+    if walk_median is not None:
+        verdict = "meets" if walk_median <= 2.0 else "misses"
+        print(f"walk_with_5kg_weights median solve time {walk_median:.3f} s ({verdict} the 2 s target)")
+
+
+if __name__ == "__main__":
+    main()

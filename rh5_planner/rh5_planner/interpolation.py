@@ -1,0 +1,171 @@
+"""1 kHz interpolation of a planned trajectory (the paper: "interpolated to 1 kHz using cubic splines").
+
+Works on a :class:`rh5_msgs_py.trajectory_file.TrajectoryData` (a :class:`rh5_planner.problem.PlanResult`
+converts with ``to_trajectory_data()``):
+
+* Joints and base position: cubic Hermite splines through the knot positions with the knot velocities as
+  end slopes, so the spline hits every knot and its derivative equals the planned velocity there (C1).
+  The base linear velocity of the file is expressed in the base frame (pinocchio LOCAL), so the slope of
+  the world position is ``R(q) v_lin``.
+* Base orientation: a cubic Hermite curve on SO(3) in the tangent space of the segment's start rotation:
+  phi(0) = 0, phi(1) = log(R0^T R1), end slopes from the body angular velocities (exact at the knots to first
+  order, consistent with the velocities), then R(t) = R0 exp(phi(t)); written back as a unit quaternion xyzw.
+* Velocities: the analytic derivative of the position splines (joints), and the knot velocities linearly
+  interpolated for the base twist.
+* Torques and contact wrenches: zero-order hold over each knot interval, exactly as the Euler integrator
+  applied the control ``u_k`` from knot k to k+1 (the contact forces are those of the same interval); a
+  linear blend would feed the stabiliser torques the optimiser never applied. Contact phases and CoPs are
+  held too.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Final
+
+import numpy as np
+import numpy.typing as npt
+
+from rh5_msgs_py.trajectory_file import NQ, TrajectoryData
+
+__all__ = ["RATE_HZ", "Interpolated", "hermite", "interpolate", "quat_to_rot", "rot_to_quat"]
+
+FloatArray = npt.NDArray[np.float64]
+RATE_HZ: Final = 1000.0
+
+
+def hermite(
+    p0: FloatArray, p1: FloatArray, m0: FloatArray, m1: FloatArray, *, h: float, s: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Cubic Hermite value and time derivative at normalised times ``s`` in [0, 1] over a segment of ``h`` s.
+
+    ``p*`` are (..., d) end values, ``m*`` end slopes per second. Returns arrays of shape (len(s), d).
+    """
+    s = s[:, None]
+    s2, s3 = s * s, s * s * s
+    h00, h10, h01, h11 = 2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2
+    d00, d10, d01, d11 = 6 * s2 - 6 * s, 3 * s2 - 4 * s + 1, -6 * s2 + 6 * s, 3 * s2 - 2 * s
+    value = h00 * p0 + h10 * h * m0 + h01 * p1 + h11 * h * m1
+    rate = (d00 * p0 + d10 * h * m0 + d01 * p1 + d11 * h * m1) / h
+    return value, rate
+
+
+def _skew(w: FloatArray) -> FloatArray:
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
+def _exp3(w: FloatArray) -> FloatArray:
+    theta = float(np.linalg.norm(w))
+    k = _skew(w)
+    if theta < 1e-9:
+        return np.eye(3) + k + 0.5 * k @ k
+    return np.eye(3) + np.sin(theta) / theta * k + (1 - np.cos(theta)) / theta**2 * k @ k
+
+
+def _log3(r: FloatArray) -> FloatArray:
+    cos = np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0)
+    theta = float(np.arccos(cos))
+    vee = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+    if theta < 1e-9:
+        return 0.5 * vee
+    return theta / (2.0 * np.sin(theta)) * vee
+
+
+def quat_to_rot(q: FloatArray) -> FloatArray:
+    """Rotation matrix of a quaternion xyzw."""
+    x, y, z, w = q / np.linalg.norm(q)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def rot_to_quat(r: FloatArray) -> FloatArray:
+    """Quaternion xyzw (w >= 0) of a rotation matrix."""
+    tr = np.trace(r)
+    if tr > 0:
+        s = 2.0 * np.sqrt(tr + 1.0)
+        q = np.array([(r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s, 0.25 * s])
+    else:
+        i = int(np.argmax(np.diag(r)))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * np.sqrt(1.0 + r[i, i] - r[j, j] - r[k, k])
+        q = np.zeros(4)
+        q[i] = 0.25 * s
+        q[j] = (r[j, i] + r[i, j]) / s
+        q[k] = (r[k, i] + r[i, k]) / s
+        q[3] = (r[k, j] - r[j, k]) / s
+    return q if q[3] >= 0 else -q
+
+
+@dataclass(frozen=True, eq=False)
+class Interpolated:
+    """Samples at ``rate_hz``: times (M,), states (M, NX) in the file layout, controls (M, 32) (zero-order hold),
+    contact wrenches (M, 2, 6), contact phases (M, 2) and CoPs (M, 2, 2) (held)."""
+
+    times: FloatArray
+    states: FloatArray
+    controls: FloatArray
+    contact_wrenches: FloatArray
+    contact_phases: npt.NDArray[np.bool_]
+    cop: FloatArray
+    joint_accelerations: FloatArray
+
+
+def interpolate(data: TrajectoryData, rate_hz: float = RATE_HZ) -> Interpolated:
+    """Sample ``data`` at ``rate_hz`` from its first to its last knot time (the knot times are always hit)."""
+    times = data.times
+    x = data.states
+    n = times.size
+    step = 1.0 / rate_hz
+    grid = np.arange(times[0], times[-1] + 0.5 * step, step)
+    grid = np.unique(np.concatenate([grid[grid < times[-1]], times]))  # every knot exactly once
+    seg = np.clip(np.searchsorted(times, grid, side="right") - 1, 0, max(0, n - 2))
+    out = np.zeros((grid.size, x.shape[1]))
+    acc = np.zeros((grid.size, x.shape[1] - NQ - 6))
+    nj = x.shape[1] - NQ - 6
+    for k in range(max(1, n - 1)):
+        mask = seg == k
+        if n == 1:
+            out[:] = x[0]
+            break
+        h = times[k + 1] - times[k]
+        s = (grid[mask] - times[k]) / h
+        x0, x1 = x[k], x[k + 1]
+        # joints
+        p, dp = hermite(x0[7:NQ], x1[7:NQ], x0[NQ + 6 :], x1[NQ + 6 :], h=h, s=s)
+        out[mask, 7:NQ] = p
+        out[mask, NQ + 6 :] = dp
+        s_col = s[:, None]
+        d2 = (
+            (12 * s_col - 6) * x0[7:NQ]
+            + (6 * s_col - 4) * h * x0[NQ + 6 :]
+            + (-12 * s_col + 6) * x1[7:NQ]
+            + (6 * s_col - 2) * h * x1[NQ + 6 :]
+        ) / h**2
+        acc[mask] = d2[:, :nj]
+        # base position (world), slopes from the LOCAL linear velocities
+        r0, r1 = quat_to_rot(x0[3:7]), quat_to_rot(x1[3:7])
+        p, _ = hermite(x0[:3], x1[:3], r0 @ x0[NQ : NQ + 3], r1 @ x1[NQ : NQ + 3], h=h, s=s)
+        out[mask, :3] = p
+        # base orientation: Hermite in the tangent space at r0
+        phi1 = _log3(r0.T @ r1)
+        phi, _ = hermite(np.zeros(3), phi1, x0[NQ + 3 : NQ + 6], x1[NQ + 3 : NQ + 6], h=h, s=s)
+        out[mask, 3:7] = np.array([rot_to_quat(r0 @ _exp3(f)) for f in phi])
+        # base twist: linear blend of the knot twists
+        out[mask, NQ : NQ + 6] = (1 - s_col) * x0[NQ : NQ + 6] + s_col * x1[NQ : NQ + 6]
+    controls = data.controls
+    held = np.minimum(seg, controls.shape[0] - 1)
+    knot_hold = np.clip(np.searchsorted(times, grid + 1e-12, side="right") - 1, 0, n - 1)
+    return Interpolated(
+        times=grid,
+        states=out,
+        controls=controls[held],
+        contact_wrenches=data.contact_wrenches[knot_hold],
+        contact_phases=data.contact_phases[knot_hold],
+        cop=data.cop[knot_hold],
+        joint_accelerations=acc,
+    )

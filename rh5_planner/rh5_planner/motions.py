@@ -1,0 +1,593 @@
+"""The motion library: every motion the planner solves, its parameters and its contact sequence.
+
+One frozen dataclass per motion kind holds the parameters (the paper's table "Characteristics and applied
+optimization constraints" and its three hardware experiments); :data:`MOTIONS` holds the nine named
+motions with the paper's values. ``motion.with_overrides({"length_m": 0.4})`` returns a validated copy.
+
+``motion.knots(reference)`` turns the parameters into the contact sequence the problem builder
+(:mod:`rh5_planner.problem`) consumes: one :class:`KnotSpec` per shooting node, saying which feet are in
+contact, where every sole should be (swing trajectories, touch-down placements) and, where the motion
+tracks it, where the CoM should be. Impulse knots (touch-down) have zero duration. The module is pure
+numpy, so motions can be listed and validated without Crocoddyl.
+
+Conventions: world frame z up, x forward; feet are ``"left"``/``"right"`` (names.FOOT_FRAMES); sole
+targets are translations of the sole frame, whose orientation stays that of the initial stance (flat, no
+turning); times in s, lengths in m.
+
+Status (UNFINISHED, see ``VERIFIED_MOTIONS``): squat_with_5kg_weights converges (~25 Box-FDDP iterations,
+~1 s) and is tested. walk_with_5kg_weights does not reach the stop threshold yet: a shortened walk (0.2 m,
+2 steps, 1.2 s) gives a feasible, contact-stable solution after 150 iterations (stop ~0.3) and is tested for
+stability and limits only. fast_squats builds and solves but stalls at stop ~0.5 after 150 iterations.
+fast_walk_1m_s, the jumps, one_leg_balancing and static_stepping build their contact sequences but have not
+been solved or checked.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar, Final
+
+import numpy as np
+import numpy.typing as npt
+
+__all__ = [
+    "COST_TERMS",
+    "MOTIONS",
+    "SIDES",
+    "VERIFIED_MOTIONS",
+    "BalanceMotion",
+    "JumpMotion",
+    "KnotSpec",
+    "MotionError",
+    "MotionSpec",
+    "Reference",
+    "SquatMotion",
+    "WalkMotion",
+    "get_motion",
+]
+
+FloatArray = npt.NDArray[np.float64]
+SIDES: Final = ("left", "right")
+COST_TERMS: Final = ("foot", "com", "friction", "cop", "joint", "posture", "torque")
+"""Cost terms of the paper's table; costs.yaml ``motion_costs`` says which a motion switches on."""
+GRAVITY: Final = 9.81
+
+
+class MotionError(ValueError):
+    """An invalid motion name, parameter name or parameter value."""
+
+
+@dataclass(frozen=True)
+class Reference:
+    """Where the motion starts: sole positions (world, m) and the CoM (world, m) of the initial pose."""
+
+    feet: Mapping[str, FloatArray]
+    com: FloatArray
+
+    def foot(self, side: str) -> FloatArray:
+        """Initial sole position of ``side`` (a copy)."""
+        return np.array(self.feet[side], dtype=float)
+
+
+@dataclass(frozen=True)
+class KnotSpec:
+    """One shooting node of the contact sequence.
+
+    ``contacts`` (left, right) are the feet held by rigid 6D contacts during the node (after the impact for an
+    impulse node). ``feet`` maps every side to its sole target position; ``com`` is the CoM target or None
+    when the motion does not track the CoM. ``impulse`` marks a touch-down node of zero duration in which
+    the feet of ``touchdown`` hit the ground.
+    """
+
+    phase: str
+    contacts: tuple[bool, bool]
+    feet: Mapping[str, FloatArray]
+    com: FloatArray | None = None
+    impulse: bool = False
+    touchdown: tuple[str, ...] = ()
+
+    def in_contact(self, side: str) -> bool:
+        """Whether ``side`` is in contact at this node."""
+        return self.contacts[SIDES.index(side)]
+
+
+def _check_positive(name: str, value: float) -> None:
+    if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+        msg = f"{name} must be a positive finite number, got {value!r}"
+        raise MotionError(msg)
+
+
+def _check_nonnegative(name: str, value: float) -> None:
+    if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+        msg = f"{name} must be a non-negative finite number, got {value!r}"
+        raise MotionError(msg)
+
+
+def _count(name: str, value: int, minimum: int = 1) -> None:
+    if not isinstance(value, int) or isinstance(value, bool) or value < minimum:
+        msg = f"{name} must be an integer >= {minimum}, got {value!r}"
+        raise MotionError(msg)
+
+
+def _knots(duration: float, dt: float) -> int:
+    return max(1, round(duration / dt))
+
+
+@dataclass(frozen=True)
+class MotionSpec:
+    """Fields every motion has; subclasses add their own and build the contact sequence.
+
+    ``costs``: the cost terms to switch on; None takes costs.yaml ``motion_costs[name]`` (the paper's table).
+    ``payload_kg_per_hand``: mass added at each hand TCP (the paper's 5 kg aluminium bars).
+    ``knee_bend_rad``: knee flexion of the initial (nominal) pose; the CoM is placed over the middle of the feet.
+    """
+
+    name: str
+    dt: float = 0.03
+    total_time_s: float = 1.0
+    payload_kg_per_hand: float = 0.0
+    knee_bend_rad: float = 0.5
+    costs: tuple[str, ...] | None = None
+
+    kind: ClassVar[str] = "abstract"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            msg = f"name must be a non-empty string, got {self.name!r}"
+            raise MotionError(msg)
+        _check_positive("dt", self.dt)
+        _check_positive("total_time_s", self.total_time_s)
+        _check_nonnegative("payload_kg_per_hand", self.payload_kg_per_hand)
+        _check_nonnegative("knee_bend_rad", self.knee_bend_rad)
+        if self.dt > self.total_time_s:
+            msg = f"dt ({self.dt} s) must not exceed total_time_s ({self.total_time_s} s)"
+            raise MotionError(msg)
+        if self.costs is not None:
+            costs = tuple(self.costs)
+            unknown = sorted(set(costs) - set(COST_TERMS))
+            if unknown:
+                msg = f"unknown cost terms {unknown}; known: {list(COST_TERMS)}"
+                raise MotionError(msg)
+            object.__setattr__(self, "costs", costs)
+
+    @property
+    def n_knots(self) -> int:
+        """Number of running (non-impulse) knots of the horizon."""
+        return _knots(self.total_time_s, self.dt)
+
+    def parameters(self) -> dict[str, Any]:
+        """The fields as a JSON-able dict (what a trajectory file stores as ``motion.parameters``)."""
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            out[f.name] = list(value) if isinstance(value, tuple) else value
+        return out
+
+    def with_overrides(self, overrides: Mapping[str, Any]) -> MotionSpec:
+        """A validated copy with ``overrides`` applied; unknown keys and wrong types raise MotionError."""
+        if not isinstance(overrides, Mapping):
+            msg = f"overrides must be a mapping, got {type(overrides).__name__}"
+            raise MotionError(msg)
+        fields = {f.name: f for f in dataclasses.fields(self)}
+        unknown = sorted(set(overrides) - set(fields))
+        if unknown:
+            msg = f"{self.name}: unknown parameters {unknown}; known: {sorted(fields)}"
+            raise MotionError(msg)
+        clean: dict[str, Any] = {}
+        for key, raw in overrides.items():
+            current = getattr(self, key)
+            value = raw
+            if isinstance(current, bool) or isinstance(value, bool):
+                if not isinstance(value, bool) or not isinstance(current, bool):
+                    msg = f"{self.name}: {key} must be {type(current).__name__}, got {value!r}"
+                    raise MotionError(msg)
+            elif isinstance(current, float) and isinstance(value, int):
+                value = float(raw)
+            elif isinstance(current, tuple) or (current is None and isinstance(value, list | tuple)):
+                if not isinstance(value, list | tuple):
+                    msg = f"{self.name}: {key} must be a list, got {value!r}"
+                    raise MotionError(msg)
+                value = tuple(float(v) if isinstance(v, int) and key != "costs" else v for v in raw)
+            elif current is not None and not isinstance(value, type(current)):
+                msg = f"{self.name}: {key} must be {type(current).__name__}, got {type(value).__name__} {value!r}"
+                raise MotionError(msg)
+            clean[key] = value
+        return dataclasses.replace(self, **clean)
+
+    def knots(self, reference: Reference) -> list[KnotSpec]:
+        """The contact sequence from ``reference`` (the initial stance)."""
+        raise NotImplementedError
+
+    def initial_base_shift(self) -> FloatArray:
+        """Base displacement from the start to the end of the motion (used to interpolate the warm start)."""
+        return np.zeros(3)
+
+
+def _stance(reference: Reference) -> dict[str, FloatArray]:
+    return {side: reference.foot(side) for side in SIDES}
+
+
+def _swing(start: FloatArray, end: FloatArray, height: float, s: float) -> FloatArray:
+    """Sole position along a swing: straight in x/y, parabolic apex ``height`` above the higher end."""
+    p = (1.0 - s) * start + s * end
+    p[2] = (1.0 - s) * start[2] + s * end[2] + 4.0 * height * s * (1.0 - s)
+    return p
+
+
+@dataclass(frozen=True)
+class WalkMotion(MotionSpec):
+    """Straight walking: ``n_steps`` alternating steps (first: ``first_foot``) covering ``length_m``.
+
+    Sole targets: the feet land at fractions 1/(n-1), 2/(n-1), ... of the length, the last step closes the
+    feet side by side at ``length_m``; swing soles follow a parabola of apex ``step_height_m``. The horizon
+    ``total_time_s`` is split into ``initial_support_s`` and ``final_support_s`` double support,
+    ``support_knots`` double-support knots after each step and equal swing phases; every touch-down is an
+    impulse node. ``track_com`` adds a predefined CoM path (linear in x from the initial CoM to the initial
+    CoM + length, middle of the feet in y) as a CoM cost and as the warm start: the paper's remedy above
+    0.35 m/s.
+    """
+
+    length_m: float = 0.5
+    step_height_m: float = 0.05
+    n_steps: int = 4
+    support_knots: int = 2
+    initial_support_s: float = 0.15
+    final_support_s: float = 0.15
+    first_foot: str = "right"
+    track_com: bool = False
+
+    kind: ClassVar[str] = "walk"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_nonnegative("length_m", self.length_m)
+        _check_positive("step_height_m", self.step_height_m)
+        _count("n_steps", self.n_steps, 2)
+        _count("support_knots", self.support_knots, 1)
+        _check_nonnegative("initial_support_s", self.initial_support_s)
+        _check_nonnegative("final_support_s", self.final_support_s)
+        if self.first_foot not in SIDES:
+            msg = f"first_foot must be one of {SIDES}, got {self.first_foot!r}"
+            raise MotionError(msg)
+        if self.swing_knots < 3:
+            msg = (
+                f"{self.name}: total_time_s = {self.total_time_s} s leaves {self.swing_knots} knots per swing "
+                f"(< 3) after the support phases; lengthen the motion or shorten the supports"
+            )
+            raise MotionError(msg)
+
+    @property
+    def speed_m_s(self) -> float:
+        """Average forward speed."""
+        return self.length_m / self.total_time_s
+
+    @property
+    def swing_knots(self) -> int:
+        """Knots of each swing phase (the remainder of the horizon split over the steps)."""
+        support = _knots(self.initial_support_s, self.dt) + _knots(self.final_support_s, self.dt)
+        return (self.n_knots - support - self.n_steps * self.support_knots) // self.n_steps
+
+    def initial_base_shift(self) -> FloatArray:
+        """The base ends ``length_m`` ahead."""
+        return np.array([self.length_m, 0.0, 0.0])
+
+    def knots(self, reference: Reference) -> list[KnotSpec]:
+        """Double support, then per step: swing, touch-down impulse, double support; then double support."""
+        feet = _stance(reference)
+        com0 = np.array(reference.com, dtype=float)
+        specs: list[KnotSpec] = []
+        n_init = _knots(self.initial_support_s, self.dt)
+        total = self.n_knots
+        mid0 = 0.5 * (feet["left"] + feet["right"])
+
+        def com_at(i: int) -> FloatArray | None:
+            if not self.track_com:
+                return None
+            s = min(1.0, i / max(1, total - _knots(self.final_support_s, self.dt)))
+            c = com0.copy()
+            c[0] += s * self.length_m
+            c[1] = mid0[1]
+            return c
+
+        def support(phase: str, count: int) -> None:
+            for _ in range(count):
+                specs.append(KnotSpec(phase, (True, True), {k: v.copy() for k, v in feet.items()}, com_at(_running())))
+
+        def _running() -> int:
+            return sum(1 for k in specs if not k.impulse)
+
+        support("initial_support", n_init)
+        order = [self.first_foot if i % 2 == 0 else _other(self.first_foot) for i in range(self.n_steps)]
+        for i, side in enumerate(order, start=1):
+            start = feet[side].copy()
+            end = start.copy()
+            end[0] = reference.foot(side)[0] + self.length_m * min(i, self.n_steps - 1) / (self.n_steps - 1)
+            contacts = (side != "left", side != "right")
+            for k in range(self.swing_knots):
+                targets = {k2: v.copy() for k2, v in feet.items()}
+                targets[side] = _swing(start, end, self.step_height_m, (k + 1) / self.swing_knots)
+                specs.append(KnotSpec(f"step_{i}_{side}", contacts, targets, com_at(_running())))
+            feet[side] = end
+            specs.append(
+                KnotSpec(
+                    f"touchdown_{i}_{side}",
+                    (True, True),
+                    {k: v.copy() for k, v in feet.items()},
+                    com_at(_running()),
+                    impulse=True,
+                    touchdown=(side,),
+                )
+            )
+            support(f"support_{i}", self.support_knots)
+        support("final_support", total - _running())
+        return specs
+
+
+def _other(side: str) -> str:
+    return "left" if side == "right" else "right"
+
+
+@dataclass(frozen=True)
+class SquatMotion(MotionSpec):
+    """``n_squats`` squats: the CoM goes down by ``com_range_m`` and back up, a cosine in time per squat.
+
+    The horizon is ``hold_s`` at rest, the squats (``total_time_s - 2 hold_s`` split evenly), ``hold_s`` at
+    rest. Both feet stay in contact; CoM x/y stay over the middle of the feet.
+    """
+
+    com_range_m: float = 0.2
+    n_squats: int = 1
+    hold_s: float = 0.15
+
+    kind: ClassVar[str] = "squat"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_positive("com_range_m", self.com_range_m)
+        _count("n_squats", self.n_squats)
+        _check_nonnegative("hold_s", self.hold_s)
+        if 2 * self.hold_s >= self.total_time_s:
+            msg = f"{self.name}: 2 * hold_s ({2 * self.hold_s} s) must be shorter than total_time_s"
+            raise MotionError(msg)
+        if self.com_range_m > 0.35:
+            msg = f"{self.name}: com_range_m = {self.com_range_m} m is beyond the knee range (<= 0.35 m)"
+            raise MotionError(msg)
+
+    def knots(self, reference: Reference) -> list[KnotSpec]:
+        """Both feet in contact at every knot; CoM height follows (1 - cos) / 2 dips."""
+        feet = _stance(reference)
+        com0 = np.array(reference.com, dtype=float)
+        mid = 0.5 * (feet["left"] + feet["right"])
+        n_hold = _knots(self.hold_s, self.dt)
+        n_move = self.n_knots - 2 * n_hold
+        specs = []
+        for i in range(self.n_knots):
+            s = min(max(i - n_hold, 0), n_move) / n_move  # 0..1 over all squats
+            depth = 0.5 * self.com_range_m * (1.0 - math.cos(2.0 * math.pi * self.n_squats * s))
+            com = np.array([mid[0], mid[1], com0[2] - depth])
+            phase = (
+                "hold"
+                if i < n_hold or i >= n_hold + n_move
+                else f"squat_{min(int(s * self.n_squats), self.n_squats - 1) + 1}"
+            )
+            specs.append(KnotSpec(phase, (True, True), {k: v.copy() for k, v in feet.items()}, com))
+        return specs
+
+
+@dataclass(frozen=True)
+class JumpMotion(MotionSpec):
+    """``n_jumps`` two-footed jumps of apex ``height_m`` (sole clearance), each ``length_m`` / n forward.
+
+    Each jump: ground phase (push-off), flight of the ballistic duration 2 sqrt(2 h / g) for the apex height,
+    touch-down impulse; the ground phases share the remaining time. Sole targets follow a parabola during
+    flight. Status: builds and solves; limits not verified against the paper (priority c).
+    """
+
+    height_m: float = 0.1
+    length_m: float = 0.0
+    n_jumps: int = 1
+
+    kind: ClassVar[str] = "jump"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_positive("height_m", self.height_m)
+        _check_nonnegative("length_m", self.length_m)
+        _count("n_jumps", self.n_jumps)
+        ground = self.n_knots - self.n_jumps * self.flight_knots
+        if ground < 3 * (self.n_jumps + 1):
+            msg = f"{self.name}: total_time_s = {self.total_time_s} s is too short for {self.n_jumps} jumps"
+            raise MotionError(msg)
+
+    @property
+    def flight_knots(self) -> int:
+        """Knots of each flight phase."""
+        return max(2, _knots(2.0 * math.sqrt(2.0 * self.height_m / GRAVITY), self.dt))
+
+    def initial_base_shift(self) -> FloatArray:
+        """The base ends ``length_m`` ahead."""
+        return np.array([self.length_m, 0.0, 0.0])
+
+    def knots(self, reference: Reference) -> list[KnotSpec]:
+        """Ground, flight, touch-down impulse, repeated; ground phases split the rest evenly."""
+        feet = _stance(reference)
+        ground_total = self.n_knots - self.n_jumps * self.flight_knots
+        grounds = [ground_total // (self.n_jumps + 1)] * (self.n_jumps + 1)
+        grounds[-1] += ground_total - sum(grounds)
+        specs: list[KnotSpec] = []
+        for j in range(self.n_jumps):
+            specs.extend(
+                KnotSpec(f"ground_{j}", (True, True), {k: v.copy() for k, v in feet.items()}) for _ in range(grounds[j])
+            )
+            start = {k: v.copy() for k, v in feet.items()}
+            end = {k: v + np.array([self.length_m / self.n_jumps, 0.0, 0.0]) for k, v in feet.items()}
+            for k in range(self.flight_knots):
+                s = (k + 1) / self.flight_knots
+                targets = {side: _swing(start[side], end[side], self.height_m, s) for side in SIDES}
+                specs.append(KnotSpec(f"flight_{j + 1}", (False, False), targets))
+            feet = end
+            specs.append(
+                KnotSpec(
+                    f"touchdown_{j + 1}",
+                    (True, True),
+                    {k: v.copy() for k, v in feet.items()},
+                    impulse=True,
+                    touchdown=SIDES,
+                )
+            )
+        specs.extend(
+            KnotSpec("landing", (True, True), {k: v.copy() for k, v in feet.items()}) for _ in range(grounds[-1])
+        )
+        return specs
+
+
+@dataclass(frozen=True)
+class BalanceMotion(MotionSpec):
+    """Quasi-static CoM shifts and one right-foot step (the paper's hardware experiments I and II).
+
+    ``phases`` lists (name, duration) in order; names: ``hold`` (initial pose), ``shift_left`` (CoM over the
+    left sole), ``lift`` (right sole up by ``lift_height_m`` and forward by ``step_length_m`` / 2),
+    ``lower`` (right sole down to ``step_length_m`` ahead, touch-down impulse), ``center`` (CoM back to the
+    middle of the support polygon). one_leg_balancing uses step_length_m = 0 (the foot goes back where it was).
+    """
+
+    phases: tuple[tuple[str, float], ...] = ()
+    lift_height_m: float = 0.05
+    step_length_m: float = 0.0
+
+    kind: ClassVar[str] = "balance"
+    PHASE_NAMES: ClassVar[tuple[str, ...]] = ("hold", "shift_left", "lift", "lower", "center")
+
+    def __post_init__(self) -> None:
+        phases = tuple((str(p[0]), float(p[1])) for p in self.phases)
+        object.__setattr__(self, "phases", phases)
+        object.__setattr__(self, "total_time_s", sum(d for _, d in phases) if phases else self.total_time_s)
+        super().__post_init__()
+        for name, duration in phases:
+            if name not in self.PHASE_NAMES:
+                msg = f"{self.name}: unknown phase {name!r}; known: {list(self.PHASE_NAMES)}"
+                raise MotionError(msg)
+            _check_positive(f"duration of phase {name}", duration)
+        _check_positive("lift_height_m", self.lift_height_m)
+        _check_nonnegative("step_length_m", self.step_length_m)
+
+    def with_overrides(self, overrides: Mapping[str, Any]) -> MotionSpec:
+        """As MotionSpec.with_overrides; ``phases`` is a list of [name, duration] pairs (total_time_s follows)."""
+        if "total_time_s" in overrides:
+            msg = f"{self.name}: total_time_s follows from the phases; override 'phases' instead"
+            raise MotionError(msg)
+        if "phases" in overrides:
+            try:
+                phases = tuple((str(n), float(d)) for n, d in overrides["phases"])
+            except (TypeError, ValueError):
+                msg = f"{self.name}: phases must be a list of [name, duration] pairs, got {overrides['phases']!r}"
+                raise MotionError(msg) from None
+            rest = {k: v for k, v in overrides.items() if k != "phases"}
+            return dataclasses.replace(self, phases=phases).with_overrides(rest)
+        return super().with_overrides(overrides)
+
+    def knots(self, reference: Reference) -> list[KnotSpec]:
+        """CoM targets interpolate (smoothstep) between the phase end points; the right foot steps."""
+        feet = _stance(reference)
+        com0 = np.array(reference.com, dtype=float)
+        com = com0.copy()
+        specs: list[KnotSpec] = []
+        right_start = feet["right"].copy()
+        right_mid = right_start + np.array([0.5 * self.step_length_m, 0.0, self.lift_height_m])
+        right_end = right_start + np.array([self.step_length_m, 0.0, 0.0])
+        for name, duration in self.phases:
+            n = _knots(duration, self.dt)
+            com_start = com.copy()
+            if name == "shift_left":
+                com_goal = np.array([feet["left"][0], feet["left"][1], com0[2]])
+            elif name == "center":
+                mid = 0.5 * (feet["left"] + feet["right"])
+                com_goal = np.array([mid[0], mid[1], com0[2]])
+            else:
+                com_goal = com_start.copy()
+            for k in range(n):
+                s = (k + 1) / n
+                smooth = s * s * (3.0 - 2.0 * s)
+                com = (1.0 - smooth) * com_start + smooth * com_goal
+                targets = {side: v.copy() for side, v in feet.items()}
+                contacts = (True, True)
+                if name == "lift":
+                    targets["right"] = (1.0 - smooth) * right_start + smooth * right_mid
+                    contacts = (True, False)
+                elif name == "lower":
+                    targets["right"] = (1.0 - smooth) * right_mid + smooth * right_end
+                    contacts = (True, False)
+                specs.append(KnotSpec(name, contacts, targets, com.copy()))
+            com = com_goal.copy()
+            if name == "lower":
+                feet["right"] = right_end.copy()
+                specs.append(
+                    KnotSpec(
+                        "touchdown_right",
+                        (True, True),
+                        {side: v.copy() for side, v in feet.items()},
+                        com.copy(),
+                        impulse=True,
+                        touchdown=("right",),
+                    )
+                )
+        return specs
+
+
+def _one_leg_phases() -> tuple[tuple[str, float], ...]:
+    return (("hold", 0.3), ("shift_left", 1.5), ("lift", 1.0), ("lower", 1.0), ("center", 1.5))
+
+
+def _stepping_phases() -> tuple[tuple[str, float], ...]:
+    return (("hold", 0.3), ("shift_left", 1.5), ("lift", 0.8), ("lower", 0.8), ("center", 1.5))
+
+
+MOTIONS: Final[dict[str, MotionSpec]] = {
+    m.name: m
+    for m in (
+        # paper table: 0.5 m, 5 cm step height, 1.5 s, 30 ms knots, 0.35 m/s (0.33 m/s average), 5 kg per hand
+        WalkMotion("walk_with_5kg_weights", dt=0.03, total_time_s=1.5, payload_kg_per_hand=5.0),
+        # paper table: 0.7 m, 0.1 m step height, 0.7 s, 30 ms; > 0.35 m/s, so a predefined CoM path
+        WalkMotion(
+            "fast_walk_1m_s",
+            dt=0.03,
+            total_time_s=0.7,
+            length_m=0.7,
+            step_height_m=0.1,
+            n_steps=3,
+            support_knots=1,
+            initial_support_s=0.06,
+            final_support_s=0.06,
+            track_com=True,
+        ),
+        # paper table: 20 cm CoM range, 2 s, 30 ms, 5 kg per hand
+        SquatMotion("squat_with_5kg_weights", dt=0.03, total_time_s=2.0, com_range_m=0.2, payload_kg_per_hand=5.0),
+        # paper table: 0.9 s, 10 ms knots
+        JumpMotion("vertical_jump_1cm", dt=0.01, total_time_s=0.9, height_m=0.01),
+        JumpMotion("vertical_jump_10cm", dt=0.01, total_time_s=0.9, height_m=0.1),
+        # paper table: 0.6 m, 0.25 m, 2.7 s, 10 ms (three jumps of 0.2 m over obstacles)
+        JumpMotion("obstacle_jumps", dt=0.01, total_time_s=2.7, height_m=0.25, length_m=0.6, n_jumps=3),
+        # hardware experiment I: five quasi-static phases
+        BalanceMotion("one_leg_balancing", dt=0.04, phases=_one_leg_phases(), step_length_m=0.0),
+        # hardware experiment II: CoM over the left foot, right step in two phases, CoM back to the centre
+        BalanceMotion("static_stepping", dt=0.04, phases=_stepping_phases(), step_length_m=0.15),
+        # hardware experiment III: 15 cm vertical base motion in 2 s, three times
+        SquatMotion("fast_squats", dt=0.03, total_time_s=6.3, com_range_m=0.15, n_squats=3),
+    )
+}
+"""The nine motions with the paper's parameters, by name."""
+
+VERIFIED_MOTIONS: Final = frozenset({"squat_with_5kg_weights"})
+"""Motions that converge and whose solutions the tests check; the others are unfinished (module docstring)."""
+
+
+def get_motion(name: str, overrides: Mapping[str, Any] | None = None) -> MotionSpec:
+    """The named motion, with ``overrides`` applied (MotionError for an unknown name or parameter)."""
+    if name not in MOTIONS:
+        msg = f"unknown motion {name!r}; known: {sorted(MOTIONS)}"
+        raise MotionError(msg)
+    motion = MOTIONS[name]
+    return motion.with_overrides(overrides) if overrides else motion

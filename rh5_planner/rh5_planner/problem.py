@@ -1,0 +1,660 @@
+"""Contact-stability soft-constrained Box-FDDP on the full RH5 model (paper, "Analysis and control using DDP").
+
+Our own builders on Crocoddyl's public API (crocoddyl.utils.biped is not API and is not used here):
+
+* Dynamics: floating-base contact dynamics with rigid 6D sole contacts (``ContactModel6D`` on
+  ``LLFoot_Sole``/``LRFoot_Sole``, LOCAL frame, Baumgarte gains from costs.yaml) in
+  ``DifferentialActionModelContactFwdDynamics``, integrated by ``IntegratedActionModelEuler`` (symplectic
+  Euler, one knot per ``motion.dt``). Every touch-down is an ``ActionModelImpulseFwdDynamics`` node
+  (``ImpulseModel6D`` on the landing soles, zero restitution) of zero duration.
+* Costs (``l = sum_c alpha_c Phi_c``, weights in config/costs.yaml), switched per motion as the paper's table:
+  foot pose tracking (``ResidualModelFramePlacement``), CoM tracking (``ResidualModelCoMPosition``), friction
+  cone + CoP (crocoddyl ``WrenchCone`` through ``ResidualModelContactWrenchCone`` with a bounded quadratic
+  barrier), joint position/velocity limits (``ResidualModelState`` + ``ActivationModelQuadraticBarrier``),
+  posture (``ResidualModelState`` weighted) and torque regularisation (``ResidualModelControl``).
+* Torque limits are the hard box of Box-FDDP: every action model's ``u_lb``/``u_ub`` are
+  -/+ ``joint_limits().torque_max`` (the upper ends of the paper's configuration-dependent ranges).
+* Payload: ``motion.payload_kg_per_hand`` is added as a point mass at each hand TCP (``AL_TCP``/``AR_TCP``) to
+  the inertia of the link carrying the TCP (pinocchio ``Inertia(m, c, 0)`` with c the TCP position in that
+  joint's frame). The 5 kg bars of the paper become 2 x 5 kg at the grasp point.
+* Initial pose: the nominal standing pose with the knees bent by ``motion.knee_bend_rad`` and the CoM over the
+  middle of the soles (a small damped Gauss-Newton IK, :func:`nominal_configuration`): the all-zero pose of
+  the model has straight knees at their 0 rad limit and the CoM 5 cm behind the sole centres.
+* Warm start: the quasi-static torques of ``problem.quasiStatic`` on a state guess. In-place motions
+  (squats, balancing) use the initial state at every knot. Motions that move the base (walks, jumps) use a
+  kinematic guess (:func:`_state_guess`): per knot, whole-body IK to the sole targets and a predefined CoM
+  path (linear in x over the motion, centred between the soles in y), velocities by finite differences.
+  That is our reading of the paper's remark that walking above 0.35 m/s needs a predefined CoM trajectory
+  as initialisation; fast_walk_1m_s also tracks that CoM path as a cost (its table row has the CoM term).
+
+``solve(motion, settings)`` builds, solves and returns a :class:`PlanResult` with states, torques, contact
+wrenches and CoPs per foot per knot, the contact phases and the solver log; ``PlanResult.to_trajectory_data``
+converts to the project's trajectory file (rh5_msgs_py.trajectory_file), reordering pinocchio's joints to
+JOINT_NAMES with q_index/v_index.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Final
+
+import crocoddyl  # must come before anything that links pinocchio extensions (design/crocoddyl_wheels.md)
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+import yaml
+
+from rh5_hyrodyn_mapper.model import build_model, joint_limits, model_hash, q_index, standing_configuration, v_index
+from rh5_msgs_py.names import FOOT_FRAMES, HAND_FRAMES, JOINT_GROUPS, JOINT_NAMES
+from rh5_msgs_py.trajectory_file import TrajectoryData, save_trajectory
+
+from .motions import SIDES, KnotSpec, MotionSpec, Reference
+
+__all__ = [
+    "COSTS_FILE",
+    "FOOT_SIZE_M",
+    "BuiltProblem",
+    "PlanResult",
+    "ProgressCallback",
+    "RobotSetup",
+    "SolverSettings",
+    "build_problem",
+    "build_robot",
+    "load_cost_config",
+    "nominal_configuration",
+    "solve",
+]
+
+FloatArray = npt.NDArray[np.float64]
+COSTS_FILE: Final = Path(__file__).parent / "config" / "costs.yaml"
+FOOT_SIZE_M: Final = (0.200, 0.080)
+"""Sole support rectangle, length (x) x width (y) (rh5_paper_facts.yaml legs.foot.support_polygon_m)."""
+ProgressCallback = Callable[[int, float, float], None]
+"""``callback(iteration, cost, stop)`` called after every Box-FDDP iteration."""
+
+
+@functools.cache
+def _cost_config_cached(path: str) -> dict[str, Any]:
+    with open(path, encoding="utf-8") as file:
+        return yaml.safe_load(file)  # type: ignore[no-any-return]
+
+
+def load_cost_config(path: str | Path | None = None) -> dict[str, Any]:
+    """The cost configuration (config/costs.yaml by default), as a fresh dict."""
+    import copy  # noqa: PLC0415
+
+    return copy.deepcopy(_cost_config_cached(str(path or COSTS_FILE)))
+
+
+# --------------------------------------------------------------------------------------------------
+# robot
+
+
+@dataclass(frozen=True, eq=False)
+class RobotSetup:
+    """The pinocchio model (with payload), Crocoddyl state/actuation, frame ids, nominal state and limits.
+
+    Limits are in pinocchio's v order (``v_index() - 6`` maps JOINT_NAMES to it).
+    """
+
+    model: pin.Model
+    state: crocoddyl.StateMultibody
+    actuation: crocoddyl.ActuationModelFloatingBase
+    foot_ids: Mapping[str, int]
+    x0: FloatArray
+    q_lower: FloatArray
+    q_upper: FloatArray
+    v_max: FloatArray
+    tau_max: FloatArray
+    payload_kg_per_hand: float
+
+    @property
+    def mass(self) -> float:
+        """Total mass including the payload [kg]."""
+        return float(sum(inertia.mass for inertia in self.model.inertias))
+
+    def reference(self, x: FloatArray | None = None) -> Reference:
+        """Sole positions and CoM of the state ``x`` (default: the nominal state)."""
+        x = self.x0 if x is None else x
+        data = self.model.createData()
+        q = x[: self.model.nq]
+        pin.framesForwardKinematics(self.model, data, q)
+        com = pin.centerOfMass(self.model, data, q)
+        feet = {side: data.oMf[fid].translation.copy() for side, fid in self.foot_ids.items()}
+        return Reference(feet=feet, com=com.copy())
+
+
+def _add_payload(model: pin.Model, mass: float) -> None:
+    for frame_name in HAND_FRAMES.values():
+        frame = model.frames[model.getFrameId(frame_name)]
+        lever = frame.placement.translation.copy()
+        model.inertias[frame.parentJoint] += pin.Inertia(mass, lever, np.zeros((3, 3)))
+
+
+def nominal_configuration(model: pin.Model, knee_bend_rad: float, iterations: int = 60) -> FloatArray:
+    """Standing pose with bent knees, flat soles where the straight pose has them, CoM over the soles' middle.
+
+    Damped Gauss-Newton (:func:`solve_ik`) on [left sole 6D, right sole 6D, CoM xy, base orientation, knee
+    angles] with a small pull of every joint to the straight pose; converges to ~1e-10.
+    """
+    data = model.createData()
+    q_straight = standing_configuration(model)
+    pin.framesForwardKinematics(model, data, q_straight)
+    soles = {side: data.oMf[model.getFrameId(FOOT_FRAMES[side])].copy() for side in SIDES}
+    com_xy = 0.5 * (soles["left"].translation[:2] + soles["right"].translation[:2])
+    q = q_straight.copy()
+    for n in ("LLKnee", "LRKnee"):
+        q[model.joints[model.getJointId(n)].idx_q] = knee_bend_rad
+    return solve_ik(model, q, soles, com=com_xy, knee_rad=knee_bend_rad, iterations=iterations)
+
+
+def solve_ik(
+    model: pin.Model,
+    q_init: FloatArray,
+    soles: Mapping[str, pin.SE3],
+    *,
+    com: FloatArray | None = None,
+    knee_rad: float | None = None,
+    q_ref: FloatArray | None = None,
+    iterations: int = 30,
+) -> FloatArray:
+    """Whole-body IK: sole placements, CoM (xy or xyz), upright base, optionally knee angles; joints pulled to
+    ``q_ref`` (default ``q_init``) by a small damping. Used for the nominal pose and the warm-start guesses."""
+    data = model.createData()
+    q_ref = q_init if q_ref is None else q_ref
+    base_rotation = pin.Quaternion(q_ref[3:7]).toRotationMatrix()
+    feet = {side: model.getFrameId(FOOT_FRAMES[side]) for side in soles}
+    knees = [_q_of_v(model, model.joints[model.getJointId(n)].idx_v) for n in ("LLKnee", "LRKnee")]
+    q = q_init.copy()
+    for _ in range(iterations):
+        pin.computeJointJacobians(model, data, q)
+        pin.framesForwardKinematics(model, data, q)
+        rows, jacs, weights = [], [], []
+        for side, fid in feet.items():
+            rows.append(pin.log6(data.oMf[fid].actInv(soles[side])).vector)
+            jacs.append(pin.getFrameJacobian(model, data, fid, pin.ReferenceFrame.LOCAL))
+            weights.append(np.full(6, 10.0))
+        if com is not None:
+            c = pin.centerOfMass(model, data, q)
+            n = len(com)
+            rows.append(np.asarray(com) - c[:n])
+            jacs.append(pin.jacobianCenterOfMass(model, data, q)[:n])
+            weights.append(np.full(n, 10.0))
+        rot = pin.Quaternion(q[3:7]).toRotationMatrix()
+        rows.append(pin.log3(rot.T @ base_rotation))
+        jbase = np.zeros((3, model.nv))
+        jbase[:, 3:6] = np.eye(3)
+        jacs.append(jbase)
+        weights.append(np.full(3, 1.0))
+        if knee_rad is not None:
+            for iq in knees:
+                jk = np.zeros((1, model.nv))
+                jk[0, iq - 1] = 1.0  # free flyer: idx_v = idx_q - 1 for 1-DoF joints
+                rows.append(np.array([knee_rad - q[iq]]))
+                jacs.append(jk)
+                weights.append(np.array([1.0]))
+        residual = np.concatenate(rows)
+        jacobian = np.vstack(jacs)
+        w = np.concatenate(weights)
+        jw = (jacobian * w[:, None]).T
+        a = jw @ jacobian + 1e-6 * np.eye(model.nv)
+        a[6:, 6:] += 1e-3 * np.eye(model.nv - 6)
+        b = jw @ residual
+        b[6:] += 1e-3 * pin.difference(model, q, q_ref)[6:]
+        q = pin.integrate(model, q, np.linalg.solve(a, b))
+        if np.max(np.abs(residual)) < 1e-10:
+            break
+    return q
+
+
+def _q_of_v(model: pin.Model, idx_v: int) -> int:
+    for joint in model.joints:
+        if joint.nv == 1 and joint.idx_v == idx_v:
+            return int(joint.idx_q)
+    raise KeyError(idx_v)
+
+
+def build_robot(payload_kg_per_hand: float = 0.0, knee_bend_rad: float = 0.5) -> RobotSetup:
+    """RH5 with the payload at the hands, its Crocoddyl state and actuation, and the nominal standing state."""
+    model = build_model(free_flyer=True)
+    if payload_kg_per_hand > 0:
+        _add_payload(model, payload_kg_per_hand)
+    state = crocoddyl.StateMultibody(model)
+    actuation = crocoddyl.ActuationModelFloatingBase(state)
+    q0 = nominal_configuration(model, knee_bend_rad)
+    x0 = np.concatenate([q0, np.zeros(model.nv)])
+    limits = joint_limits()
+    order = np.argsort(v_index(model))  # pinocchio v order -> position in JOINT_NAMES
+    return RobotSetup(
+        model=model,
+        state=state,
+        actuation=actuation,
+        foot_ids={side: model.getFrameId(FOOT_FRAMES[side]) for side in SIDES},
+        x0=x0,
+        q_lower=np.asarray(limits.position_lower)[order],
+        q_upper=np.asarray(limits.position_upper)[order],
+        v_max=np.asarray(limits.velocity_max)[order],
+        tau_max=np.asarray(limits.torque_max)[order],
+        payload_kg_per_hand=payload_kg_per_hand,
+    )
+
+
+# --------------------------------------------------------------------------------------------------
+# costs and action models
+
+
+def _group_vector(values: Mapping[str, float], model: pin.Model) -> FloatArray:
+    """Per-joint values in pinocchio v order (without the base) from per-group values of costs.yaml."""
+    out = np.zeros(model.nv - 6)
+    vidx = v_index(model) - 6
+    groups = {
+        "torso": ("torso",),
+        "head": ("head",),
+        "arms": ("left_arm", "right_arm"),
+        "legs": ("left_leg", "right_leg"),
+    }
+    for key, names in groups.items():
+        for group in names:
+            for joint in JOINT_GROUPS[group]:
+                out[vidx[JOINT_NAMES.index(joint)]] = float(values[key])
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class _CostTerms:
+    """Everything the per-knot builders share: config, switched-on terms and precomputed residual data."""
+
+    robot: RobotSetup
+    config: Mapping[str, Any]
+    terms: frozenset[str]
+    posture_weights: FloatArray
+    control_weights: FloatArray
+    limit_bounds: crocoddyl.ActivationBounds
+    cone: crocoddyl.WrenchCone
+    foot_rotations: Mapping[str, FloatArray]
+
+
+def _make_terms(robot: RobotSetup, motion: MotionSpec, config: Mapping[str, Any]) -> _CostTerms:
+    terms = frozenset(motion.costs if motion.costs is not None else config["motion_costs"][motion.name])
+    model = robot.model
+    pw = config["posture"]["state_weights"]
+    nj = model.nv - 6
+    posture = np.concatenate(
+        [
+            np.asarray(pw["base_position"], dtype=float),
+            np.asarray(pw["base_orientation"], dtype=float),
+            _group_vector({k: pw[k] for k in ("torso", "head", "arms", "legs")}, model),
+            np.full(6, float(pw["base_velocity"])),
+            np.full(nj, float(pw["joint_velocity"])),
+        ]
+    )
+    if "com" in terms:
+        posture[:3] = 0.0  # the CoM task places the base; a base-height pull would fight it (squats)
+    control = _group_vector(config["torque"]["control_weights"], model)
+    jl = config["joint_limits"]
+
+    def shrink(lo: FloatArray, hi: FloatArray, beta: float) -> tuple[FloatArray, FloatArray]:
+        mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+        return mid - beta * half, mid + beta * half
+
+    qlo, qhi = shrink(robot.q_lower, robot.q_upper, float(jl["position_beta"]))
+    vlo, vhi = shrink(-robot.v_max, robot.v_max, float(jl["velocity_beta"]))
+    inf6 = np.full(6, np.inf)
+    bounds = crocoddyl.ActivationBounds(
+        np.concatenate([-inf6, qlo, -inf6, vlo]), np.concatenate([inf6, qhi, inf6, vhi]), 1.0
+    )
+    cs = config["contact_stability"]
+    shrink_factor = 1.0 - float(cs["margin"])
+    box = (
+        np.array(FOOT_SIZE_M) * float(cs["cop_fraction"]) * shrink_factor
+        if "cop" in terms
+        else np.array([10.0, 10.0])  # friction only: no CoP bound in practice
+    )
+    mu = float(cs["mu"]) * shrink_factor if "friction" in terms else 1e3
+    cone = crocoddyl.WrenchCone(np.eye(3), mu, box, int(cs["facets"]), True, float(cs["min_normal_force"]))
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, robot.x0[: model.nq])
+    rotations = {side: data.oMf[fid].rotation.copy() for side, fid in robot.foot_ids.items()}
+    return _CostTerms(robot, config, terms, posture, control, bounds, cone, rotations)
+
+
+def _costs(ct: _CostTerms, spec: KnotSpec, nu: int, *, terminal: bool = False) -> crocoddyl.CostModelSum:
+    """The cost sum of one knot: the motion's switched-on terms with costs.yaml weights."""
+    robot, cfg, state = ct.robot, ct.config, ct.robot.state
+    costs = crocoddyl.CostModelSum(state, nu)
+    if "foot" in ct.terms or spec.impulse:
+        weight = cfg["foot"]["touchdown_weight"] if spec.impulse else cfg["foot"]["weight"]
+        for side in SIDES:
+            if spec.impulse and side not in spec.touchdown:
+                continue
+            target = pin.SE3(ct.foot_rotations[side], np.asarray(spec.feet[side]))
+            residual = crocoddyl.ResidualModelFramePlacement(state, robot.foot_ids[side], target, nu)
+            costs.addCost(f"foot_{side}", crocoddyl.CostModelResidual(state, residual), float(weight))
+    if "com" in ct.terms and spec.com is not None:
+        residual = crocoddyl.ResidualModelCoMPosition(state, np.asarray(spec.com), nu)
+        costs.addCost("com", crocoddyl.CostModelResidual(state, residual), float(cfg["com"]["weight"]))
+    if ({"friction", "cop"} & ct.terms) and not spec.impulse and not terminal:
+        activation = crocoddyl.ActivationModelQuadraticBarrier(crocoddyl.ActivationBounds(ct.cone.lb, ct.cone.ub))
+        for side in SIDES:
+            if spec.in_contact(side):
+                residual = crocoddyl.ResidualModelContactWrenchCone(state, robot.foot_ids[side], ct.cone, nu)
+                costs.addCost(
+                    f"wrench_cone_{side}",
+                    crocoddyl.CostModelResidual(state, activation, residual),
+                    float(cfg["contact_stability"]["weight"]),
+                )
+    if "joint" in ct.terms:
+        residual = crocoddyl.ResidualModelState(state, state.zero(), nu)
+        activation = crocoddyl.ActivationModelQuadraticBarrier(ct.limit_bounds)
+        costs.addCost(
+            "joint_limits",
+            crocoddyl.CostModelResidual(state, activation, residual),
+            float(cfg["joint_limits"]["weight"]),
+        )
+    if "posture" in ct.terms or terminal:
+        residual = crocoddyl.ResidualModelState(state, robot.x0, nu)
+        activation = crocoddyl.ActivationModelWeightedQuad(ct.posture_weights**2)
+        weight = cfg["posture"]["terminal_weight"] if terminal else cfg["posture"]["weight"]
+        costs.addCost("posture", crocoddyl.CostModelResidual(state, activation, residual), float(weight))
+    if "torque" in ct.terms and nu > 0 and not terminal:
+        residual = crocoddyl.ResidualModelControl(state, nu)
+        activation = crocoddyl.ActivationModelWeightedQuad(ct.control_weights**2)
+        costs.addCost(
+            "torque", crocoddyl.CostModelResidual(state, activation, residual), float(cfg["torque"]["weight"])
+        )
+    return costs
+
+
+def _contact_model(
+    ct: _CostTerms, spec: KnotSpec, *, dt: float, terminal: bool = False
+) -> crocoddyl.ActionModelAbstract:
+    robot = ct.robot
+    nu = robot.actuation.nu
+    contacts = crocoddyl.ContactModelMultiple(robot.state, nu)
+    gains = np.asarray(ct.config["contact_stability"]["baumgarte_gains"], dtype=float)
+    for side in SIDES:
+        if spec.in_contact(side):
+            placement = pin.SE3(ct.foot_rotations[side], np.asarray(spec.feet[side]))
+            contact = crocoddyl.ContactModel6D(
+                robot.state, robot.foot_ids[side], placement, pin.ReferenceFrame.LOCAL, nu, gains
+            )
+            contacts.addContact(f"{FOOT_FRAMES[side]}_contact", contact)
+    costs = _costs(ct, spec, nu, terminal=terminal)
+    dam = crocoddyl.DifferentialActionModelContactFwdDynamics(robot.state, robot.actuation, contacts, costs, 0.0, True)
+    iam = crocoddyl.IntegratedActionModelEuler(dam, 0.0 if terminal else dt)
+    iam.u_lb = -robot.tau_max
+    iam.u_ub = robot.tau_max
+    return iam
+
+
+def _impulse_model(ct: _CostTerms, spec: KnotSpec) -> crocoddyl.ActionModelAbstract:
+    robot = ct.robot
+    impulses = crocoddyl.ImpulseModelMultiple(robot.state)
+    for side in SIDES:
+        if spec.in_contact(side):
+            impulse = crocoddyl.ImpulseModel6D(robot.state, robot.foot_ids[side], pin.ReferenceFrame.LOCAL)
+            impulses.addImpulse(f"{FOOT_FRAMES[side]}_impulse", impulse)
+    costs = _costs(ct, spec, 0)
+    return crocoddyl.ActionModelImpulseFwdDynamics(robot.state, impulses, costs, 0.0, 0.0, True)
+
+
+def _state_guess(
+    motion: MotionSpec, robot: RobotSetup, specs: Sequence[KnotSpec], rotations: Mapping[str, FloatArray]
+) -> list[FloatArray]:
+    """Kinematic warm start: per knot, IK to the sole targets and a predefined CoM path, velocities by
+    finite differences. The CoM path is the knot's CoM target where the motion has one, else the initial CoM
+    moved linearly in x by the motion's base displacement and held over the middle of the target soles in y.
+    """
+    model = robot.model
+    nq = model.nq
+    reference = robot.reference()
+    shift = motion.initial_base_shift()
+    n = len(specs)
+    qs = [robot.x0[:nq].copy()]
+    q = qs[0]
+    running = 0
+    total = sum(1 for s in specs if not s.impulse)
+    for spec in specs:
+        running += 0 if spec.impulse else 1
+        if spec.com is not None:
+            com = np.asarray(spec.com)
+        else:
+            com = reference.com + shift * (running / total)
+            com[1] = 0.5 * (spec.feet["left"][1] + spec.feet["right"][1])
+        soles = {side: pin.SE3(rotations[side], np.asarray(spec.feet[side])) for side in SIDES}
+        q = solve_ik(model, q, soles, com=com, q_ref=robot.x0[:nq], iterations=8)
+        qs.append(q)
+    xs = []
+    for i in range(n + 1):
+        j = min(i, n - 1)
+        dt = 0.0 if specs[j].impulse else motion.dt
+        v = pin.difference(model, qs[i], qs[i + 1]) / dt if i < n and dt > 0 else np.zeros(model.nv)
+        xs.append(np.concatenate([qs[i], v]))
+    xs[0] = robot.x0.copy()
+    return xs
+
+
+@dataclass(frozen=True, eq=False)
+class BuiltProblem:
+    """A built shooting problem with its knot specs, robot and warm start."""
+
+    motion: MotionSpec
+    robot: RobotSetup
+    specs: Sequence[KnotSpec]
+    problem: crocoddyl.ShootingProblem
+    xs_guess: list[FloatArray]
+    us_guess: list[FloatArray]
+    terms: frozenset[str]
+
+
+def build_problem(
+    motion: MotionSpec, config: Mapping[str, Any] | None = None, *, interpolate_guess: bool = True
+) -> BuiltProblem:
+    """Robot, contact sequence, one action model per knot (impulse nodes at touch-down), warm start."""
+    config = load_cost_config() if config is None else config
+    robot = build_robot(motion.payload_kg_per_hand, motion.knee_bend_rad)
+    specs = motion.knots(robot.reference())
+    ct = _make_terms(robot, motion, config)
+    running = [_impulse_model(ct, s) if s.impulse else _contact_model(ct, s, dt=motion.dt) for s in specs]
+    terminal = _contact_model(ct, specs[-1], dt=motion.dt, terminal=True)
+    problem = crocoddyl.ShootingProblem(robot.x0.copy(), running, terminal)
+    # Kinematic IK guess only for motions that move the base; in-place motions start from x0 at every knot.
+    moves = bool(np.any(motion.initial_base_shift() != 0.0))
+    if interpolate_guess and moves:
+        xs = _state_guess(motion, robot, specs, ct.foot_rotations)
+    else:
+        xs = [robot.x0.copy() for _ in range(len(specs) + 1)]
+    us = list(problem.quasiStatic(xs[:-1]))
+    return BuiltProblem(motion, robot, specs, problem, xs, us, ct.terms)
+
+
+# --------------------------------------------------------------------------------------------------
+# solving
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """Box-FDDP settings: iteration cap, stop threshold, threads of the derivative pass, progress callback."""
+
+    max_iterations: int = 200
+    stop_threshold: float = 1e-7
+    nthreads: int = 2
+    callback: ProgressCallback | None = None
+    verbose: bool = False
+    cost_config: Mapping[str, Any] | None = None
+    interpolate_guess: bool = True
+
+
+class _ProgressCallback(crocoddyl.CallbackAbstract):  # type: ignore[misc]
+    """Forwards (iteration, cost, stop) of every Box-FDDP iteration to a Python callable."""
+
+    def __init__(self, report: ProgressCallback) -> None:
+        crocoddyl.CallbackAbstract.__init__(self)
+        self._report = report
+
+    def __call__(self, solver: crocoddyl.SolverAbstract) -> None:
+        self._report(int(solver.iter), float(solver.cost), float(solver.stop))
+
+
+@dataclass(frozen=True, eq=False)
+class PlanResult:
+    """A solved motion at its knots (impulse nodes merged: the post-impact state is kept).
+
+    Arrays in pinocchio order (q: xyz, quaternion xyzw, joints in pinocchio order; v likewise; u: joint
+    torques in pinocchio v order); ``to_trajectory_data`` reorders to JOINT_NAMES. ``wrenches`` (N, 2, 6) are
+    the contact wrenches on the (left, right) sole, force then torque, in the sole frame about its origin (zero
+    without contact); ``cop`` (N, 2, 2) the CoP x, y in the sole frame (NaN without contact). ``us`` has N-1
+    rows: row k acts from knot k to k+1 (zero-order hold, as the Euler integrator applied it).
+    """
+
+    motion: MotionSpec
+    robot: RobotSetup
+    times: FloatArray
+    xs: FloatArray
+    us: FloatArray
+    wrenches: FloatArray
+    contact_phases: npt.NDArray[np.bool_]
+    cop: FloatArray
+    phase_names: tuple[str, ...]
+    solver_log: Mapping[str, Any]
+    com: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    @property
+    def converged(self) -> bool:
+        """Whether Box-FDDP met its stop threshold within the iteration cap."""
+        return bool(self.solver_log["converged"])
+
+    def to_trajectory_data(self) -> TrajectoryData:
+        """The project's trajectory file content (joints reordered to JOINT_NAMES)."""
+        model = self.robot.model
+        qi, vi = q_index(model), v_index(model)
+        nq = model.nq
+        states = np.concatenate([self.xs[:, :7], self.xs[:, qi], self.xs[:, nq : nq + 6], self.xs[:, nq + vi]], axis=1)
+        return TrajectoryData(
+            times=self.times,
+            states=states,
+            controls=self.us[:, vi - 6],
+            contact_wrenches=self.wrenches,
+            contact_phases=self.contact_phases,
+            cop=self.cop,
+            motion={"name": self.motion.name, "kind": self.motion.kind, "parameters": self.motion.parameters()},
+            model_hash=model_hash(),
+            solver_log=dict(self.solver_log),
+        )
+
+    def save(self, path: str | Path) -> Path:
+        """Write the trajectory file (rh5_msgs_py.trajectory_file.save_trajectory)."""
+        return save_trajectory(path, self.to_trajectory_data())
+
+
+def _wrench(data: Any, name: str) -> FloatArray:
+    force = data.differential.multibody.contacts.contacts[name].f
+    return np.concatenate([force.linear, force.angular])
+
+
+def _extract(built: BuiltProblem, solver: crocoddyl.SolverBoxFDDP, log: Mapping[str, Any]) -> PlanResult:
+    problem, specs, robot = built.problem, built.specs, built.robot
+    model = robot.model
+    xs_all = [np.array(x) for x in solver.xs]
+    us_all = [np.array(u) for u in solver.us]
+    problem.calc(solver.xs, solver.us)  # make every data hold the final solution
+    keep: list[int] = []
+    for i in range(len(specs) + 1):
+        if i < len(specs) and specs[i].impulse:
+            continue  # pre-impact state: replaced by the post-impact state at the same time
+        keep.append(i)
+    times, xs, us, wrenches, phases, names = [], [], [], [], [], []
+    t = 0.0
+    dt = built.motion.dt
+    for j, i in enumerate(keep):
+        times.append(t)
+        xs.append(xs_all[i])
+        spec = specs[min(i, len(specs) - 1)]
+        phases.append(spec.contacts)
+        names.append(spec.phase)
+        w = np.zeros((2, 6))
+        src = i if i < len(specs) else i - 1
+        while src >= 0 and specs[src].impulse:
+            src -= 1
+        for k, side in enumerate(SIDES):
+            if specs[src].in_contact(side) and spec.in_contact(side):
+                w[k] = _wrench(problem.runningDatas[src], f"{FOOT_FRAMES[side]}_contact")
+        wrenches.append(w)
+        if j < len(keep) - 1:
+            us.append(us_all[i])
+            t += dt
+    wrench_arr = np.array(wrenches)
+    phase_arr = np.array(phases, dtype=bool)
+    cop = np.full((len(keep), 2, 2), np.nan)
+    fz = wrench_arr[:, :, 2]
+    ok = phase_arr & (fz > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cop[:, :, 0] = np.where(ok, -wrench_arr[:, :, 4] / fz, np.nan)
+        cop[:, :, 1] = np.where(ok, wrench_arr[:, :, 3] / fz, np.nan)
+    data = model.createData()
+    com = np.array([pin.centerOfMass(model, data, x[: model.nq]) for x in xs])
+    return PlanResult(
+        motion=built.motion,
+        robot=robot,
+        times=np.array(times),
+        xs=np.array(xs),
+        us=np.array(us),
+        wrenches=wrench_arr,
+        contact_phases=phase_arr,
+        cop=cop,
+        phase_names=tuple(names),
+        solver_log=log,
+        com=com,
+    )
+
+
+def solve(motion: MotionSpec, settings: SolverSettings | None = None) -> PlanResult:
+    """Build and solve ``motion`` with Box-FDDP; returns the knots, wrenches, CoPs and the solver log."""
+    settings = settings or SolverSettings()
+    t_build = time.perf_counter()
+    built = build_problem(motion, settings.cost_config, interpolate_guess=settings.interpolate_guess)
+    built.problem.nthreads = settings.nthreads
+    solver = crocoddyl.SolverBoxFDDP(built.problem)
+    solver.th_stop = settings.stop_threshold
+    callbacks: list[Any] = []
+    if settings.callback is not None:
+        callbacks.append(_ProgressCallback(settings.callback))
+    if settings.verbose:
+        callbacks.append(crocoddyl.CallbackVerbose())
+    solver.setCallbacks(callbacks)
+    build_time = time.perf_counter() - t_build
+    t_solve = time.perf_counter()
+    solved = bool(solver.solve(built.xs_guess, built.us_guess, settings.max_iterations, False))
+    solve_time = time.perf_counter() - t_solve
+    knots = len(built.specs)
+    iterations = int(solver.iter)
+    converged = solved and bool(solver.isFeasible)
+    log = {
+        "solver": "BoxFDDP",
+        "iterations": iterations,
+        "cost": float(solver.cost),
+        "stop_criterion": float(solver.stop),
+        "stop_threshold": settings.stop_threshold,
+        "converged": converged,
+        "is_feasible": bool(solver.isFeasible),
+        "solve_time_s": solve_time,
+        "build_time_s": build_time,
+        "knots": knots,
+        "ms_per_knot_iteration": 1e3 * solve_time / max(1, knots * max(1, iterations)),
+        "nthreads": settings.nthreads,
+        "cost_terms": sorted(built.terms),
+        "mass_kg": robot_mass(built.robot),
+    }
+    if not math.isfinite(log["cost"]):
+        log["converged"] = False
+    return _extract(built, solver, log)
+
+
+def robot_mass(robot: RobotSetup) -> float:
+    """Total mass of ``robot`` including its payload [kg]."""
+    return robot.mass
