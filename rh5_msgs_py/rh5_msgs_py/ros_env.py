@@ -3,9 +3,9 @@
 Fast DDS discovery multicasts out of every network interface unless told otherwise, so
 each process that starts ROS gets ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` unless the
 operator chose a range explicitly (a real robot spanning two machines needs SUBNET).
-Fast DDS's shared-memory transport leaves ``/dev/shm/fastrtps_*`` segments behind when a
-process is killed and has the worse latency tail here (design/ros2_wheels.md, section 2),
-so the suite defaults to the UDPv4 transport on loopback.
+Fast DDS keeps shared-memory segments in ``/dev/shm/fastrtps_*`` while a process runs; a clean
+exit removes them, a killed process leaves them (``fastdds shm clean`` removes stale ones).
+(``FASTDDS_BUILTIN_TRANSPORTS=UDPv4`` does not change that with rmw_fastrtps here: measured.)
 """
 
 from __future__ import annotations
@@ -20,7 +20,6 @@ from pathlib import Path
 
 SAFE_DEFAULTS: Mapping[str, str] = {
     "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
-    "FASTDDS_BUILTIN_TRANSPORTS": "UDPv4",
     "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp",
 }
 

@@ -1,4 +1,4 @@
-"""The ROS environment rules: LOCALHOST discovery, UDPv4, unique domain ids."""
+"""The ROS environment rules: LOCALHOST discovery, unique domain ids, logs in the tree."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from rh5_msgs_py.ros_env import DomainLease, apply_safe_defaults, suite_environm
 def test_safe_defaults_fill_gaps_but_keep_explicit_choices() -> None:
     env = apply_safe_defaults({"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"})
     assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SUBNET"
-    assert env["FASTDDS_BUILTIN_TRANSPORTS"] == "UDPv4"
+    assert env["RMW_IMPLEMENTATION"] == "rmw_fastrtps_cpp"
     assert apply_safe_defaults({})["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
 
 
