@@ -94,8 +94,8 @@ class DriverLoop:
             order = np.arange(self._count - n, self._count) % size
             return self._times[order], self._references[order], self._measured[order]
 
-    def tracking_error(self, skip_s: float = 1.0) -> np.ndarray:
-        """Max |reference - reading| per actuator after the first ``skip_s`` seconds."""
+    def tracking_error(self, skip_s: float = 1.0, percentile: float = 100.0) -> np.ndarray:
+        """|reference - reading| per actuator after the first ``skip_s`` seconds: the max, or a percentile."""
         t, ref, measured = self.history()
         keep = t - t[0] > skip_s * 1e9
-        return np.abs(ref[keep] - measured[keep]).max(axis=0)
+        return np.percentile(np.abs(ref[keep] - measured[keep]), percentile, axis=0)
