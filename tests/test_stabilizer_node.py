@@ -134,3 +134,43 @@ def test_estop_latch_refuses_start(harness: Harness) -> None:
     assert "emergency stop" in message
     harness.estop.publish(Bool(data=False))
     harness.spin_for(0.3)
+
+
+def _file_trajectory(path: Path) -> Path:
+    """A slow 2 s joint sine in the trajectory file format (base standing still, no contacts needed)."""
+    from rh5_hyrodyn_mapper.model import model_hash
+    from rh5_msgs_py.trajectory_file import NQ, NV, TrajectoryData, save_trajectory
+
+    t = np.arange(0.0, 2.0, 0.03)
+    states = np.zeros((len(t), NQ + NV))
+    states[:, 6] = 1.0  # base quaternion (x, y, z, w) = identity
+    states[:, 7 : 7 + NUM_JOINTS] = 0.05 * np.sin(np.pi * t)[:, None]
+    states[:, NQ + 6 :] = 0.05 * np.pi * np.cos(np.pi * t)[:, None]
+    data = TrajectoryData(
+        times=t,
+        states=states,
+        controls=np.zeros((len(t) - 1, NUM_JOINTS)),
+        contact_wrenches=np.zeros((len(t), 2, 6)),
+        contact_phases=np.ones((len(t), 2), dtype=bool),
+        cop=np.zeros((len(t), 2, 2)),
+        motion={"name": "test_sine"},
+        model_hash=model_hash(),
+    )
+    return save_trajectory(path, data)
+
+
+def test_trajectory_file_parameter_loads_and_plays(harness: Harness, ros_test_environment: dict[str, str]) -> None:
+    """A second stabilizer started with trajectory_file plays it (no planned_trajectory needed)."""
+    log_dir = Path(ros_test_environment["ROS_LOG_DIR"]) / "stabilizer_file"
+    path = _file_trajectory(log_dir.parent / "test_sine.rh5traj")
+    spec = NodeSpec(
+        "stabilizer_file",
+        "rh5_joint_stabilizer",
+        "stabilizer_node",
+        {"state_timeout_s": 0.05, "trajectory_file": str(path)},
+    )
+    with SuiteRun(Bringup("", (spec,)), log_dir, int(ros_test_environment["ROS_DOMAIN_ID"])) as run:
+        assert wait_for_nodes(harness.node, {"stabilizer_file"}) == set()
+        ok, message = call_trigger(harness.node, "/stabilizer_file/start")
+    assert ok, message
+    assert "trajectory loaded: 67 points" in run.processes[0].stderr_path.read_text()
