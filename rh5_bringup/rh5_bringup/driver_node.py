@@ -142,13 +142,14 @@ class DriverNode(SuiteNode):
         values.update({f"clamped.{k}": v for k, v in core.clamped.items()})
         decoder = self.transport.stats().decoder
         values["garbage_bytes"] = decoder.garbage_bytes
-        for board in core.board_map:
+        for board in core.board_map:  # frame statistics of every board since start
             stats = decoder.senders.get(board.address)
-            if stats is not None and (stats.crc_errors or stats.lost or stats.malformed or stats.oversize):
-                values[f"board.{board.name}"] = (
-                    f"frames={stats.frames} crc={stats.crc_errors} lost={stats.lost} "
-                    f"malformed={stats.malformed} oversize={stats.oversize}"
-                )
+            frames, crc, lost, bad = (
+                (0, 0, 0, 0)
+                if stats is None
+                else (stats.frames, stats.crc_errors, stats.lost, stats.malformed + stats.oversize)
+            )
+            values[f"board.{board.name}"] = f"frames={frames} crc={crc} lost={lost} malformed={bad}"
         errors = [core.board_map.boards[i].name for i in np.flatnonzero(core.readings.errors)]
         if errors:
             values["board_errors"] = ", ".join(errors)
