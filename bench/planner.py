@@ -59,7 +59,7 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--nthreads", type=int, default=2)
     parser.add_argument("--max-iterations", type=int, default=200)
-    parser.add_argument("--stop-threshold", type=float, default=1e-5)
+    parser.add_argument("--stop-threshold", type=float, default=1e-7)
     args = parser.parse_args()
     names = [n for n in args.motions.split(",") if n]
     for name in names:

@@ -32,51 +32,70 @@ COP_FRACTION = CONFIG["contact_stability"]["cop_fraction"]
 COP_TOLERANCE = 1e-3
 G = 9.81
 
-# CI versions: the squat is the paper's; the walk is shortened (same structure: double support, alternating
-# swings with touch-down impulses, payload, the paper's cost set) because the full 1.5 s / 4-step walk does
-# not reach the stop threshold within the test budget (see bench/planner.py for the full motions).
+# The paper's motions: squat, fast squats (hardware experiment III) and the full walk (0.5 m, 4 steps, 1.5 s,
+# 5 kg per hand); all three converge to th_stop 1e-7 within the test budget (~6 s of solving together).
 SQUAT = get_motion("squat_with_5kg_weights")
-WALK = get_motion("walk_with_5kg_weights", {"length_m": 0.2, "total_time_s": 1.2, "n_steps": 2})
+FAST_SQUATS = get_motion("fast_squats")
+WALK = get_motion("walk_with_5kg_weights")
+STOP = 1e-7
 
 
 @pytest.fixture(scope="module")
 def squat() -> PlanResult:
-    return solve(SQUAT, SolverSettings(max_iterations=150, stop_threshold=1e-5))
+    return solve(SQUAT, SolverSettings(max_iterations=100, stop_threshold=STOP))
+
+
+@pytest.fixture(scope="module")
+def fast_squats() -> PlanResult:
+    return solve(FAST_SQUATS, SolverSettings(max_iterations=100, stop_threshold=STOP))
 
 
 @pytest.fixture(scope="module")
 def walk() -> PlanResult:
-    return solve(WALK, SolverSettings(max_iterations=150, stop_threshold=1e-5))
+    return solve(WALK, SolverSettings(max_iterations=150, stop_threshold=STOP))
 
 
-@pytest.fixture(scope="module", params=["squat", "walk"])
+@pytest.fixture(scope="module", params=["squat", "fast_squats", "walk"])
 def plan(request: pytest.FixtureRequest) -> PlanResult:
     return request.getfixturevalue(request.param)
 
 
-def test_squat_converges(squat: PlanResult) -> None:
-    log = squat.solver_log
+def _assert_converged(plan: PlanResult, max_iterations: int) -> None:
+    log = plan.solver_log
     assert log["converged"], log
-    assert log["iterations"] < 150
+    assert log["stop_criterion"] < STOP
+    assert log["iterations"] <= max_iterations, log
     assert math.isfinite(log["cost"])
 
 
-def test_walk_solution_is_feasible(walk: PlanResult) -> None:
-    """UNFINISHED: the walk does not reach the stop threshold yet (stop ~0.3 after 150 iterations); its solution
-    is dynamically feasible (no gaps) and is checked for contact stability and limits below."""
-    log = walk.solver_log
-    assert log["is_feasible"], log
-    assert math.isfinite(log["cost"])
+def test_squat_converges(squat: PlanResult) -> None:
+    _assert_converged(squat, 30)  # measured 10
+
+
+def test_fast_squats_converge(fast_squats: PlanResult) -> None:
+    _assert_converged(fast_squats, 30)  # measured 10
+
+
+def test_walk_converges(walk: PlanResult) -> None:
+    _assert_converged(walk, 140)  # measured ~115
 
 
 def test_walk_moves_forward(walk: PlanResult) -> None:
-    assert walk.xs[-1, 0] - walk.xs[0, 0] == pytest.approx(WALK.length_m, abs=0.05)
+    # ends balanced: the CoM over the final 50 % CoP rectangle of the soles (measured 0.458, 42 mm behind their middle)
+    half_cop_x = 0.5 * COP_FRACTION * FOOT_SIZE_M[0]
+    assert walk.com[-1, 0] - walk.com[0, 0] == pytest.approx(WALK.length_m, abs=half_cop_x)
+    assert walk.xs[-1, 0] - walk.xs[0, 0] == pytest.approx(WALK.length_m, abs=0.06)  # base (measured 0.454)
     assert not walk.contact_phases.all(), "a walk has single-support knots"
 
 
 def test_squat_tracks_com_range(squat: PlanResult) -> None:
     depth = squat.com[0, 2] - squat.com[:, 2].min()
     assert depth == pytest.approx(SQUAT.com_range_m, abs=0.03)  # soft CoM task vs torque/posture costs
+
+
+def test_fast_squats_track_com_range(fast_squats: PlanResult) -> None:
+    depth = fast_squats.com[0, 2] - fast_squats.com[:, 2].min()
+    assert depth == pytest.approx(FAST_SQUATS.com_range_m, abs=0.03)  # measured 0.143 of 0.15
 
 
 def test_cop_inside_region(plan: PlanResult) -> None:
@@ -143,10 +162,11 @@ def test_standing_forces_balance_gravity_with_payload() -> None:
 
 
 def test_feet_do_not_slide(plan: PlanResult) -> None:
-    """Soles in contact stay put: < 10 mm drift per contact phase (measured ~6 mm), sole twist < 0.03 (m/s, rad/s).
+    """Soles in contact stay put: < 3 mm drift per contact phase (measured <= 1.5 mm with the Baumgarte position
+    term), sole twist < 0.03 (m/s, rad/s) (measured <= 0.005 squats, ~0.027 walk).
 
     The rigid contact constrains the sole acceleration; the symplectic Euler step and the Baumgarte damping
-    leave a first-order velocity residue (measured: ~0.01 m/s squat, ~0.02 m/s walk), not a slide.
+    leave a small first-order velocity residue, not a slide.
     """
     model = plan.robot.model
     data = model.createData()
@@ -166,7 +186,7 @@ def test_feet_do_not_slide(plan: PlanResult) -> None:
             start = anchor.setdefault(i, position)
             worst_drift = max(worst_drift, float(np.linalg.norm(position - start)))
     assert worst_twist < 0.03
-    assert worst_drift < 1e-2
+    assert worst_drift < 3e-3
 
 
 def test_trajectory_file_roundtrip_and_joint_order(squat: PlanResult, tmp_path) -> None:
