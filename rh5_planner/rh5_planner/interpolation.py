@@ -115,14 +115,22 @@ class Interpolated:
     joint_accelerations: FloatArray
 
 
+KNOT_SNAP_S = 1e-9
+
+
 def interpolate(data: TrajectoryData, rate_hz: float = RATE_HZ) -> Interpolated:
     """Sample ``data`` at ``rate_hz`` from its first to its last knot time (the knot times are always hit)."""
     times = data.times
     x = data.states
     n = times.size
     step = 1.0 / rate_hz
-    grid = np.arange(times[0], times[-1] + 0.5 * step, step)
-    grid = np.unique(np.concatenate([grid[grid < times[-1]], times]))  # every knot exactly once
+    count = int(np.floor((times[-1] - times[0]) / step + 1e-9)) + 1
+    grid = times[0] + step * np.arange(count)
+    if n > 1:  # every knot exactly once: grid points within a nanosecond of a knot give way to it
+        pos = np.clip(np.searchsorted(times, grid), 1, n - 1)
+        nearest = np.minimum(np.abs(grid - times[pos - 1]), np.abs(grid - times[pos]))
+        grid = grid[nearest > KNOT_SNAP_S]
+    grid = np.union1d(grid, times)
     seg = np.clip(np.searchsorted(times, grid, side="right") - 1, 0, max(0, n - 2))
     out = np.zeros((grid.size, x.shape[1]))
     acc = np.zeros((grid.size, x.shape[1] - NQ - 6))
