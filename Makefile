@@ -12,7 +12,7 @@ PYTEST_ARGS ?=
 .PHONY: run test lint venv lock clean
 
 run: $(STAMP)
-	$(VENV)/bin/rh5 up --duration 5 --start
+	$(VENV)/bin/rh5 up --duration 15 --start
 
 test: $(STAMP)
 	$(PY) -m pytest $(PYTEST_ARGS)

@@ -101,6 +101,9 @@ def up(bringup: Bringup, duration_s: float | None, log_root: Path, start: bool =
         else:
             print(f"rh5 up: {len(names)} nodes running: {', '.join(sorted(names))}", flush=True)
             if start:
+                print("rh5 up: planning the planner's motion ...", flush=True)
+                _, message = call_trigger(observer, f"{namespace.rstrip('/')}/planner/plan", timeout_s=120.0)
+                print(f"rh5 up: planner plan: {message}", flush=True)
                 _, message = call_set_bool(observer, f"{namespace.rstrip('/')}/driver/enable", True)
                 print(f"rh5 up: driver enable: {message}", flush=True)
                 _, message = call_trigger(observer, f"{namespace.rstrip('/')}/stabilizer/start")
@@ -130,7 +133,9 @@ def build_parser() -> argparse.ArgumentParser:
     up_parser.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
     up_parser.add_argument("--bringup", type=Path, default=None, help="bringup description YAML")
     up_parser.add_argument("--log-dir", type=Path, default=DEFAULT_LOG_ROOT, help="where node logs go")
-    up_parser.add_argument("--start", action="store_true", help="start the stabilizer's playback once up")
+    up_parser.add_argument(
+        "--start", action="store_true", help="once up: plan the planner's motion, enable the driver, start playback"
+    )
     return parser
 
 
