@@ -76,29 +76,37 @@ class SuiteNode(Node):
 
 
 def run_node(factory: Callable[[], SuiteNode], args: list[str] | None = None) -> None:
-    """Run one node until SIGINT/SIGTERM; exit 0 when stopped, 2 when it could not start."""
+    """Run one node until SIGINT/SIGTERM; exit 0 when stopped, 2 when it could not start.
+
+    A stop that arrives while the node is still being built ends it cleanly too, with a summary
+    saying so (the launcher and tests may signal a node as soon as it shows up in the graph).
+    """
     apply_safe_defaults()
     rclpy.init(args=args if args is not None else sys.argv)
     node: SuiteNode | None = None
+    stopped = False
     try:
         node = factory()
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        stopped = True
     except Exception as err:
-        if node is not None:
-            if rclpy.ok():
+        if rclpy.ok():
+            if node is not None:
                 raise
-            # SIGINT shut the context down under a callback in flight (e.g. a message being taken): stopping anyway
-            print(f"ignored during shutdown: {err!r}", file=sys.stderr, flush=True)
-            return
-        print(f"cannot start: {err}", file=sys.stderr, flush=True)
-        rclpy.try_shutdown()
-        sys.exit(EXIT_BAD_START)
+            print(f"cannot start: {err}", file=sys.stderr, flush=True)
+            rclpy.try_shutdown()
+            sys.exit(EXIT_BAD_START)
+        # SIGINT/SIGTERM shut the context down under work in flight (a message being taken, a node being built)
+        print(f"ignored during shutdown: {err!r}", file=sys.stderr, flush=True)
+        stopped = True
     finally:
         if node is not None:
             print(SUMMARY_PREFIX + json.dumps(node.summary(), sort_keys=True), flush=True)
             node.destroy_node()
+        elif stopped:
+            summary = {"node": None, "seen": {}, "sent": {}, "stopped": "during start-up"}
+            print(SUMMARY_PREFIX + json.dumps(summary, sort_keys=True), flush=True)
         rclpy.try_shutdown()
 
 
