@@ -117,6 +117,38 @@ class SubmechanismModel(ABC):
         tau = None if f is None else self.torques(y, f, jac=jac)
         return y, yd, tau
 
+    def _single_actuator_space(
+        self,
+        y: FloatArray,
+        yd: FloatArray | None,
+        ydd: FloatArray | None,
+        tau: FloatArray | None,
+        max_condition: float,
+    ) -> tuple[FloatArray, FloatArray | None, FloatArray | None, FloatArray | None] | None:
+        """``to_actuator_space`` of ONE sample through the float path; None when the inputs are batches."""
+        single = sample_lists(self.dof, y, yd, ydd, tau)
+        if single is None:
+            return None
+        l, ld, ldd, f = self.to_actuator_space_floats(*single, max_condition)
+        return np.array(l), optional_array(ld), optional_array(ldd), optional_array(f)
+
+    def _single_joint_space(
+        self,
+        l: FloatArray,
+        ld: FloatArray | None,
+        f: FloatArray | None,
+        y_guess: FloatArray | None = None,
+    ) -> tuple[FloatArray, FloatArray | None, FloatArray | None] | None:
+        """``to_joint_space`` of ONE sample through the float path; None when the inputs are batches.
+
+        Pass ``y_guess`` only where the forward kinematics uses it (it must then be one sample too).
+        """
+        single = sample_lists(self.dof, l, ld, f, *(() if y_guess is None else (y_guess,)))
+        if single is None:
+            return None
+        y, yd, tau = self.to_joint_space_floats(*single)
+        return np.array(y), optional_array(yd), optional_array(tau)
+
     def to_actuator_space_floats(
         self,
         y: Sequence[float],

@@ -39,8 +39,6 @@ from .base import (
     SingularityError,
     as_samples,
     frozen_array,
-    optional_array,
-    sample_lists,
     singular_solve,
 )
 
@@ -212,10 +210,8 @@ class Lambda1RRPR(ImmutableModel):
         max_condition: float = 1e6,
     ) -> tuple[FloatArray, FloatArray | None, FloatArray | None, FloatArray | None]:
         """(l, l_dot, l_ddot, f) from one cos/sin evaluation (see the base class)."""
-        single = sample_lists(1, y, yd, ydd, tau)
-        if single is not None:
-            l, ld, ldd, f = self.to_actuator_space_floats(*single, max_condition)
-            return np.array(l), optional_array(ld), optional_array(ldd), optional_array(f)
+        if (single := self._single_actuator_space(y, yd, ydd, tau, max_condition)) is not None:
+            return single
         phi = self.phi0 + as_samples(self.name, y, 1)
         c = np.cos(phi)
         l = np.sqrt(self._k0 - self._k1 * c)
@@ -275,10 +271,8 @@ class Lambda1RRPR(ImmutableModel):
         y_guess: FloatArray | None = None,
     ) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
         """(y, y_dot, tau): closed-form FK, then J(y) for y_dot = l_dot / J and tau = J f (see the base class)."""
-        single = sample_lists(1, l, ld, f)
-        if single is not None:
-            y, yd, tau = self.to_joint_space_floats(*single)
-            return np.array(y), optional_array(yd), optional_array(tau)
+        if (single := self._single_joint_space(l, ld, f)) is not None:
+            return single
         y = self.forward_with_info(l, y_guess)[0]
         if ld is None and f is None:
             return y, None, None

@@ -34,8 +34,6 @@ from .base import (
     actuator_limits,
     as_samples,
     frozen_array,
-    optional_array,
-    sample_lists,
 )
 
 __all__ = ["HEAD_TRANSMISSION", "LinearTransmission", "SerialJoint", "transmission_limits"]
@@ -163,10 +161,8 @@ class LinearTransmission(ImmutableModel):
     ) -> tuple[FloatArray, FloatArray | None, FloatArray | None, FloatArray | None]:
         """(T y, T y_dot, T y_ddot, T^-T tau) (bias 0; see the base class)."""
         m = self.dof
-        single = sample_lists(m, y, yd, ydd, tau)
-        if single is not None:
-            l, ld, ldd, f = self.to_actuator_space_floats(*single, max_condition)
-            return np.array(l), optional_array(ld), optional_array(ldd), optional_array(f)
+        if (single := self._single_actuator_space(y, yd, ydd, tau, max_condition)) is not None:
+            return single
         y = as_samples(self.name, y, m)
         yd, ydd, tau = (None if x is None else as_samples(self.name, x, m) for x in (yd, ydd, tau))
         if any(x is not None and x.shape != y.shape for x in (yd, ydd, tau)):  # broadcasting: the composed maps
@@ -210,10 +206,8 @@ class LinearTransmission(ImmutableModel):
     ) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
         """(T^-1 l, T^-1 l_dot, T^T f) (see the base class; ``y_guess`` is not needed)."""
         m = self.dof
-        single = sample_lists(m, l, ld, f)
-        if single is not None:
-            y, yd, tau = self.to_joint_space_floats(*single)
-            return np.array(y), optional_array(yd), optional_array(tau)
+        if (single := self._single_joint_space(l, ld, f)) is not None:
+            return single
         l = as_samples(self.name, l, m)
         ld, f = (None if x is None else as_samples(self.name, x, m) for x in (ld, f))
         if any(x is not None and x.shape != l.shape for x in (ld, f)):  # broadcasting: the composed maps

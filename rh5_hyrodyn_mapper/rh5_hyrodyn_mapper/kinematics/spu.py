@@ -36,8 +36,6 @@ from .base import (
     SingularityError,
     as_samples,
     frozen_array,
-    optional_array,
-    sample_lists,
     singular_solve,
 )
 
@@ -196,10 +194,8 @@ class UniversalJointPlatform(ImmutableModel):
         max_condition: float = 1e6,
     ) -> tuple[FloatArray, FloatArray | None, FloatArray | None, FloatArray | None]:
         """(l, l_dot, l_ddot, f) from one trig evaluation and one pass over the legs (see the base class)."""
-        single = sample_lists(2, y, yd, ydd, tau)
-        if single is not None:
-            l, ld, ldd, f = self.to_actuator_space_floats(*single, max_condition)
-            return np.array(l), optional_array(ld), optional_array(ldd), optional_array(f)
+        if (single := self._single_actuator_space(y, yd, ydd, tau, max_condition)) is not None:
+            return single
         y = as_samples(self.name, y, 2)
         trig = _trig_array(y)
         if yd is None and tau is None:
@@ -273,10 +269,8 @@ class UniversalJointPlatform(ImmutableModel):
         y_guess: FloatArray | None = None,
     ) -> tuple[FloatArray, FloatArray | None, FloatArray | None]:
         """(y, y_dot, tau): Newton FK, then the converged iterate's J (= J(y)) for y_dot = J^-1 l_dot, tau = J^T f."""
-        single = sample_lists(2, l, ld, f, y_guess)
-        if single is not None:
-            y, yd, tau = self.to_joint_space_floats(*single)
-            return np.array(y), optional_array(yd), optional_array(tau)
+        if (single := self._single_joint_space(l, ld, f, y_guess)) is not None:
+            return single
         l = as_samples(self.name, l, 2)
         flat = l.reshape(-1, 2)
         guess = None if y_guess is None else np.broadcast_to(as_samples(self.name, y_guess, 2), l.shape).reshape(-1, 2)
