@@ -146,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.duration is not None and args.duration <= 0:
             print("rh5 up: --duration must be positive", file=sys.stderr)
             return 2
-        bringup = load_bringup(args.bringup).with_parameters("sim_hardware", mode=args.sim)
+        bringup = load_bringup(args.bringup).resolved(sim=args.sim)
         return up(bringup, args.duration, args.log_dir, start=args.start)
     return 2
 

@@ -14,7 +14,7 @@ import signal
 import subprocess
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -35,14 +35,45 @@ class NodeSpec:
     package: str
     executable: str
     parameters: dict[str, Any] = field(default_factory=dict)
+    remappings: tuple[tuple[str, str], ...] = ()
+    """Topic/service renames (from, to), as ``-r from:=to`` on the command line."""
+
+
+@dataclass(frozen=True)
+class LaunchArgument:
+    """A launch argument of the bringup: a named value that sets one parameter of one node."""
+
+    name: str
+    default: str
+    choices: tuple[str, ...]
+    node: str
+    parameter: str
+    description: str = ""
 
 
 @dataclass(frozen=True)
 class Bringup:
-    """The suite to start: a namespace and its nodes in start order."""
+    """The suite to start: a namespace, its nodes in start order and the launch arguments."""
 
     namespace: str
     nodes: tuple[NodeSpec, ...]
+    arguments: tuple[LaunchArgument, ...] = ()
+
+    def resolved(self, **values: str) -> Bringup:
+        """A copy with every launch argument applied (``values`` override the defaults); unknown or bad values raise."""
+        known = {a.name: a for a in self.arguments}
+        unknown = set(values) - set(known)
+        if unknown:
+            msg = f"unknown launch arguments {sorted(unknown)} (have {sorted(known)})"
+            raise KeyError(msg)
+        bringup = self
+        for argument in self.arguments:
+            value = values.get(argument.name, argument.default)
+            if argument.choices and value not in argument.choices:
+                msg = f"launch argument {argument.name}: {value!r} is not one of {list(argument.choices)}"
+                raise ValueError(msg)
+            bringup = bringup.with_parameters(argument.node, **{argument.parameter: value})
+        return bringup
 
     def with_parameters(self, node_name: str, **parameters: Any) -> Bringup:
         """A copy in which ``node_name`` gets extra/overriding parameters."""
@@ -50,10 +81,9 @@ class Bringup:
             msg = f"no node {node_name!r} in the bringup (have {[n.name for n in self.nodes]})"
             raise KeyError(msg)
         nodes = tuple(
-            NodeSpec(n.name, n.package, n.executable, {**n.parameters, **parameters}) if n.name == node_name else n
-            for n in self.nodes
+            replace(n, parameters={**n.parameters, **parameters}) if n.name == node_name else n for n in self.nodes
         )
-        return Bringup(self.namespace, nodes)
+        return replace(self, nodes=nodes)
 
 
 def load_bringup(path: Path | None = None) -> Bringup:
@@ -64,9 +94,32 @@ def load_bringup(path: Path | None = None) -> Bringup:
         text = Path(path).read_text(encoding="utf-8")
     document = yaml.safe_load(text)
     nodes = tuple(
-        NodeSpec(n["name"], n["package"], n["executable"], dict(n.get("parameters") or {})) for n in document["nodes"]
+        NodeSpec(
+            n["name"],
+            n["package"],
+            n["executable"],
+            dict(n.get("parameters") or {}),
+            tuple((str(src), str(dst)) for src, dst in (n.get("remappings") or {}).items()),
+        )
+        for n in document["nodes"]
     )
-    return Bringup(str(document.get("namespace") or ""), nodes)
+    arguments = tuple(
+        LaunchArgument(
+            name,
+            str(a["default"]),
+            tuple(str(c) for c in a.get("choices") or ()),
+            *str(a["sets"]).split(".", 1),
+            description=str(a.get("description", "")),
+        )
+        for name, a in (document.get("arguments") or {}).items()
+    )
+    bringup = Bringup(str(document.get("namespace") or ""), nodes, arguments)
+    names = {n.name for n in nodes}
+    for argument in arguments:
+        if argument.node not in names:
+            msg = f"launch argument {argument.name} sets {argument.node}.{argument.parameter}: no such node"
+            raise ValueError(msg)
+    return bringup
 
 
 def node_command(node: NodeSpec, namespace: str = "") -> list[str]:
@@ -74,6 +127,8 @@ def node_command(node: NodeSpec, namespace: str = "") -> list[str]:
     command = [str(Path(sys.prefix) / "bin" / node.executable), "--ros-args", "-r", f"__node:={node.name}"]
     if namespace:
         command += ["-r", f"__ns:=/{namespace.strip('/')}"]
+    for source, target in node.remappings:
+        command += ["-r", f"{source}:={target}"]
     for key, value in node.parameters.items():
         command += ["-p", f"{key}:={json.dumps(value)}"]  # JSON is YAML flow style, which --ros-args parses
     return command

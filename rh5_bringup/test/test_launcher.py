@@ -55,3 +55,15 @@ def test_cli_rejects_a_non_positive_duration(capsys: pytest.CaptureFixture[str])
     assert main(["up", "--duration", "0"]) == 2
     assert "--duration must be positive" in capsys.readouterr().err
     assert build_parser().parse_args(["up", "--sim", "physics"]).sim == "physics"
+
+
+def test_node_command_carries_remappings_before_parameters() -> None:
+    spec = NodeSpec("mapper", "rh5_hyrodyn_mapper", "mapper_node", {"a": 1}, (("joint_states", "/other/states"),))
+    command = node_command(spec)
+    assert command[command.index("joint_states:=/other/states") - 1] == "-r"
+    assert command.index("joint_states:=/other/states") < command.index("a:=1")
+
+
+def test_cli_sim_choice_sets_the_sim_hardware_mode() -> None:
+    modes = {n.name: n.parameters.get("mode") for n in load_bringup().resolved(sim="physics").nodes}
+    assert modes["sim_hardware"] == "physics"
