@@ -1,24 +1,17 @@
-"""The ``rh5`` command line: start the suite (``rh5 up``) and, later, run experiments and reports."""
+"""The ``rh5`` command line: start the suite (``rh5 up``), run experiments (``rh5 experiment``), write reports."""
 
 from __future__ import annotations
 
 import argparse
-import os
-import signal
 import sys
 import time
-from datetime import datetime
 from pathlib import Path
-from types import FrameType
 from typing import Any
 
-from rh5_bringup.launcher import Bringup, SuiteRun, load_bringup, wait_for_nodes
+from rh5_bringup.launcher import Bringup, SuiteRun, load_bringup
+from rh5_bringup.session import SuiteSession, run_dir
 
 DEFAULT_LOG_ROOT = Path(".ros") / "log"
-
-
-def _run_dir(root: Path) -> Path:
-    return root / datetime.now().strftime("rh5_%Y%m%d_%H%M%S_%f")
 
 
 def format_report(run: SuiteRun, exit_codes: dict[str, int]) -> str:
@@ -77,51 +70,94 @@ def _call_until_success(node: Any, kind: Any, service: str, request: Any, timeou
 
 def up(bringup: Bringup, duration_s: float | None, log_root: Path, start: bool = False) -> int:
     """Start the suite, wait until every node is in the graph, run, stop cleanly and report."""
-    run = SuiteRun(bringup, _run_dir(log_root))
-    stop_requested = False
-
-    def request_stop(_signum: int, _frame: FrameType | None) -> None:
-        nonlocal stop_requested
-        stop_requested = True
-
-    previous = {sig: signal.signal(sig, request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
-    os.environ.update(run.env)  # the launcher's own graph observer joins the run's domain
-    import rclpy  # noqa: PLC0415 (after the environment is set)
-
-    rclpy.init(signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-    observer = rclpy.create_node("rh5_launcher")
-    try:
-        run.start()
+    with SuiteSession(bringup, run_dir(log_root)) as session:
+        run = session.run
         print(f"rh5 up: ROS_DOMAIN_ID={run.domain_id}, logs in {run.log_dir}", flush=True)
+        missing = session.start()
         names = {n.name for n in bringup.nodes}
-        namespace = "/" + bringup.namespace.strip("/") if bringup.namespace else "/"
-        missing = wait_for_nodes(observer, names, namespace)
         if missing:
             print(f"rh5 up: never appeared in the ROS graph: {sorted(missing)}", file=sys.stderr)
         else:
             print(f"rh5 up: {len(names)} nodes running: {', '.join(sorted(names))}", flush=True)
             if start:
                 print("rh5 up: planning the planner's motion ...", flush=True)
-                _, message = call_trigger(observer, f"{namespace.rstrip('/')}/planner/plan", timeout_s=120.0)
+                _, message = call_trigger(session.node, session.service("planner", "plan"), timeout_s=120.0)
                 print(f"rh5 up: planner plan: {message}", flush=True)
-                _, message = call_set_bool(observer, f"{namespace.rstrip('/')}/driver/enable", True)
+                _, message = call_set_bool(session.node, session.service("driver", "enable"), True)
                 print(f"rh5 up: driver enable: {message}", flush=True)
-                _, message = call_trigger(observer, f"{namespace.rstrip('/')}/stabilizer/start")
+                _, message = call_trigger(session.node, session.service("stabilizer", "start"))
                 print(f"rh5 up: stabilizer start: {message}", flush=True)
         deadline = None if duration_s is None else time.monotonic() + duration_s
-        while not stop_requested and not run.exited() and (deadline is None or time.monotonic() < deadline):
+        while (
+            not session.stop_requested and not session.crashed() and (deadline is None or time.monotonic() < deadline)
+        ):
             time.sleep(0.05)
-        crashed = [p.spec.name for p in run.exited()]
-        if crashed:
-            print(f"rh5 up: stopped on their own: {crashed}", file=sys.stderr)
-    finally:
-        exit_codes = run.stop()
-        observer.destroy_node()
-        rclpy.try_shutdown()
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        if session.crashed():
+            print(f"rh5 up: stopped on their own: {session.crashed()}", file=sys.stderr)
+        exit_codes = session.close()
     print(format_report(run, exit_codes), flush=True)
     return 0 if not missing and all(code == 0 for code in exit_codes.values()) else 1
+
+
+def _parse_overrides(pairs: list[str]) -> dict[str, Any]:
+    """``key=value`` pairs, values parsed as YAML (numbers, lists, booleans); ValueError names a bad pair."""
+    import yaml  # noqa: PLC0415
+
+    overrides: dict[str, Any] = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep or not key:
+            msg = f"--set {pair!r}: expected key=value"
+            raise ValueError(msg)
+        overrides[key.strip()] = yaml.safe_load(value)
+    return overrides
+
+
+def experiment(args: argparse.Namespace) -> int:
+    """``rh5 experiment``: plan or reuse, run on the simulated robot, record, report."""
+    from rh5_bringup.experiment import ExperimentError, ExperimentSettings, run_experiment  # noqa: PLC0415
+    from rh5_planner.motions import MOTIONS, MotionError, get_motion  # noqa: PLC0415
+
+    try:
+        overrides = _parse_overrides(args.set)
+        get_motion(args.motion, overrides)
+    except (ValueError, KeyError, MotionError) as err:
+        known = f" (motions: {', '.join(MOTIONS)})" if args.motion not in MOTIONS else ""
+        print(f"rh5 experiment: {err}{known}", file=sys.stderr)
+        return 2
+    settings = ExperimentSettings(
+        args.motion,
+        overrides,
+        sim=args.sim,
+        output_root=args.out,
+        replan=args.replan,
+        hold_after_s=args.hold,
+        bringup=args.bringup,
+        report=not args.no_report,
+    )
+    try:
+        result = run_experiment(settings, progress=lambda text: print(f"rh5 experiment: {text}", flush=True))
+    except ExperimentError as err:
+        print(f"rh5 experiment: {err}", file=sys.stderr)
+        return 1
+    print(f"rh5 experiment: bag {result.bag}")
+    if result.report is not None:
+        print(f"rh5 experiment: report {result.report}")
+    ok = result.outcome == "completed" and all(code == 0 for code in result.exit_codes.values())
+    return 0 if ok else 1
+
+
+def report(args: argparse.Namespace) -> int:
+    """``rh5 report BAG``: (re)write the report of a recording."""
+    from rh5_bringup.report import write_report  # noqa: PLC0415
+
+    if not (args.bag / "metadata.yaml").exists():
+        print(f"rh5 report: {args.bag} is not a rosbag2 folder (no metadata.yaml)", file=sys.stderr)
+        return 2
+    joints = [j for j in args.joints.split(",") if j] if args.joints else []
+    folder = write_report(args.bag, args.out, joints)
+    print(f"rh5 report: {folder}")
+    return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -136,6 +172,19 @@ def build_parser() -> argparse.ArgumentParser:
     up_parser.add_argument(
         "--start", action="store_true", help="once up: plan the planner's motion, enable the driver, start playback"
     )
+    exp = commands.add_parser("experiment", help="plan, run on the simulated robot, record and report a motion")
+    exp.add_argument("motion", help="motion name (rh5-plan --list)")
+    exp.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="motion parameter override")
+    exp.add_argument("--sim", choices=["kinematic", "physics"], default="physics", help="simulated hardware")
+    exp.add_argument("--out", type=Path, default=Path("out"), help="output root (trajectories/, experiments/)")
+    exp.add_argument("--replan", action="store_true", help="plan again even if a cached trajectory exists")
+    exp.add_argument("--hold", type=float, default=1.0, help="seconds to keep holding after the motion ends")
+    exp.add_argument("--bringup", type=Path, default=None, help="bringup description YAML")
+    exp.add_argument("--no-report", action="store_true", help="record only")
+    rep = commands.add_parser("report", help="write the report of a recorded experiment bag")
+    rep.add_argument("bag", type=Path, help="rosbag2 folder")
+    rep.add_argument("--joints", default="", help="extra joints to plot, comma separated")
+    rep.add_argument("--out", type=Path, default=None, help="report folder (default: next to the bag)")
     return parser
 
 
@@ -148,6 +197,10 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         bringup = load_bringup(args.bringup).resolved(sim=args.sim)
         return up(bringup, args.duration, args.log_dir, start=args.start)
+    if args.command == "experiment":
+        return experiment(args)
+    if args.command == "report":
+        return report(args)
     return 2
 
 

@@ -75,6 +75,7 @@ class StabilizerNode(SuiteNode):
             correction=self.balance,
         )
         self.measurement: LatestValue[Measurement] = LatestValue()
+        self._reported_state = self.core.state
         self.tracking = TrackingWindow()
         self._state_codec = JointStateCodec(JOINT_NAMES, what="joint_states")
         self._command_codec = JointStateCodec(JOINT_NAMES)
@@ -185,6 +186,10 @@ class StabilizerNode(SuiteNode):
     def _tick(self, now_ns: int, period_ns: int) -> None:
         measurement, _, _ = self.measurement.try_get()
         command = self.core.update(now_ns, period_ns, measurement)
+        if self.core.state is not self._reported_state:
+            # a transition is published at once: recordings then know when playback started to the millisecond
+            self._reported_state = self.core.state
+            self._publish_status()
         if command is None:
             return
         self.tracking.add(self.core.tracking_error)

@@ -1,0 +1,249 @@
+"""``rh5 experiment NAME``: plan (or reuse) a motion, play it through the whole suite on the simulated
+robot, record it, and write the report.
+
+Sequence (the paper's hardware procedure, with the simulation's crane as the lifting harness):
+plan or load the cached trajectory -> start the suite with the robot hanging in the sim's support at the
+motion's first pose -> the planner publishes the trajectory (``~/load``) -> enable the driver (boards hold
+their pose) -> release the support, let the robot settle on its feet -> stabilizer ``~/start`` (ramp-in,
+playback) -> wait until it holds the last sample, a little longer -> stop every node (the recorder closes
+the bag) -> report. A progress line shows the stabilizer's state and the base height while it runs.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sys
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from rh5_bringup.launcher import Bringup, load_bringup
+from rh5_bringup.session import SuiteSession, run_dir
+from rh5_msgs_py import interfaces
+
+DEFAULT_OUTPUT_ROOT = Path("out")
+SETTLE_AFTER_ENABLE_S = 0.5
+"""Boards hold their pose this long before the support is released."""
+SETTLE_AFTER_RELEASE_S = 1.0
+"""The robot stands on its feet under the boards' hold this long before playback starts."""
+FALL_HEIGHT_FRACTION = 0.6
+"""The robot has fallen when the base is below this fraction of its height at release."""
+
+
+class ExperimentError(RuntimeError):
+    """The experiment could not run (planning failed, a node did not come up, a service refused)."""
+
+
+@dataclass(frozen=True)
+class ExperimentSettings:
+    """What ``rh5 experiment`` runs and where it writes."""
+
+    motion: str
+    overrides: Mapping[str, Any] = field(default_factory=dict)
+    sim: str = "physics"
+    output_root: Path = DEFAULT_OUTPUT_ROOT
+    replan: bool = False
+    hold_after_s: float = 1.0
+    max_iterations: int = 200
+    bringup: Path | None = None
+    report: bool = True
+
+
+@dataclass
+class ExperimentResult:
+    """Where things went and how the run ended."""
+
+    folder: Path
+    trajectory: Path
+    bag: Path
+    report: Path | None = None
+    outcome: str = "not run"
+    fell: bool = False
+    exit_codes: dict[str, int] = field(default_factory=dict)
+
+
+# --- the trajectory -------------------------------------------------------------------------------------------------
+
+
+def trajectory_key(motion: str, overrides: Mapping[str, Any]) -> str:
+    """Cache key of a planned motion: its parameters, the robot model and the cost configuration."""
+    from rh5_hyrodyn_mapper.model.robot import model_hash  # noqa: PLC0415
+    from rh5_planner.motions import get_motion  # noqa: PLC0415
+
+    spec = get_motion(motion, dict(overrides))
+    costs = resources.files("rh5_planner").joinpath("config/costs.yaml").read_bytes()
+    blob = json.dumps({"motion": spec.parameters(), "model": model_hash()}, sort_keys=True).encode() + costs
+    return hashlib.sha256(blob).hexdigest()[:12]
+
+
+def planned_trajectory(settings: ExperimentSettings, progress: Callable[[str], None] = print) -> tuple[Path, bool]:
+    """The motion's trajectory file: from the cache (out/trajectories) or solved now; returns (path, cached)."""
+    cache = settings.output_root / "trajectories"
+    path = cache / f"{settings.motion}-{trajectory_key(settings.motion, settings.overrides)}.npz"
+    if path.exists() and not settings.replan:
+        return path, True
+    import crocoddyl  # noqa: F401, PLC0415 (before pinocchio, see design/crocoddyl_wheels.md)
+
+    from rh5_planner.motions import get_motion  # noqa: PLC0415
+    from rh5_planner.problem import SolverSettings, solve  # noqa: PLC0415
+
+    started = time.monotonic()
+
+    def report(iteration: int, cost: float, stop: float) -> None:
+        progress(
+            f"planning {settings.motion}: iteration {iteration}, cost {cost:.4g}, stop {stop:.2e}, "
+            f"{time.monotonic() - started:.1f} s"
+        )
+
+    result = solve(
+        get_motion(settings.motion, dict(settings.overrides)),
+        SolverSettings(max_iterations=settings.max_iterations, callback=report),
+    )
+    if not result.converged:
+        log = result.solver_log
+        msg = f"{settings.motion} did not converge ({log.get('iterations')} iterations, stop {log.get('stop')})"
+        raise ExperimentError(msg)
+    cache.mkdir(parents=True, exist_ok=True)
+    result.save(path)
+    return path, False
+
+
+# --- the suite ------------------------------------------------------------------------------------------------------
+
+
+def experiment_bringup(settings: ExperimentSettings, trajectory: Path, bag: Path) -> Bringup:
+    """The bringup of the experiment: physics (or kinematic) sim starting at the motion's first pose, the recorder
+    writing ``bag``, the planner loading ``trajectory``."""
+    from rh5_msgs_py.trajectory_file import load_trajectory  # noqa: PLC0415
+
+    data = load_trajectory(trajectory)
+    bringup = load_bringup(settings.bringup).resolved(sim=settings.sim)
+    bringup = bringup.with_parameters("recorder", output=str(bag))
+    bringup = bringup.with_parameters("planner", trajectory_file=str(trajectory.resolve()))
+    if settings.sim == "physics":
+        payload = float(data.motion.get("parameters", {}).get("payload_kg_per_hand", 0.0))
+        bringup = bringup.with_parameters(
+            "sim_hardware",
+            initial_joint_positions=[float(v) for v in data.joint_positions[0]],
+            initial_base_position=[float(v) for v in data.base_positions[0]],
+            initial_base_orientation=[float(v) for v in data.base_quaternions_xyzw[0]],
+            hand_payload_kg=payload,
+        )
+    return bringup
+
+
+class _Monitor:
+    """Follows the stabilizer's state (from /diagnostics) and the true base height (sim/base_pose)."""
+
+    def __init__(self, node: Any) -> None:
+        from rh5_msgs_py.conversions import diagnostics_from_msg  # noqa: PLC0415
+        from rh5_msgs_py.interfaces import message_class  # noqa: PLC0415
+
+        self.state = "unknown"
+        self.reason = ""
+        self.base_z: float | None = None
+        self._from_msg = diagnostics_from_msg
+        topic = interfaces.DIAGNOSTICS
+        node.create_subscription(message_class(topic.type), topic.name, self._on_diagnostics, topic.qos)
+        topic = interfaces.SIM_BASE_POSE
+        node.create_subscription(message_class(topic.type), topic.name, self._on_pose, topic.qos)
+
+    def _on_diagnostics(self, msg: Any) -> None:
+        for status in self._from_msg(msg):
+            if status.name == "rh5/stabilizer":
+                self.state = str(status.values.get("state", self.state))
+                self.reason = str(status.values.get("reason", ""))
+
+    def _on_pose(self, msg: Any) -> None:
+        self.base_z = float(msg.pose.position.z)
+
+
+def _call(session: SuiteSession, node: str, service: str, progress: Callable[[str], None], **kw: Any) -> str:
+    from rh5_bringup.cli import call_set_bool, call_trigger  # noqa: PLC0415
+
+    name = session.service(node, service)
+    if "value" in kw:
+        ok, message = call_set_bool(session.node, name, kw["value"])
+    else:
+        ok, message = call_trigger(session.node, name, timeout_s=kw.get("timeout_s", 10.0))
+    progress(f"{node}/{service}: {message}")
+    if not ok:
+        msg = f"{name} refused: {message}"
+        raise ExperimentError(msg)
+    return message
+
+
+def _play(
+    session: SuiteSession, settings: ExperimentSettings, duration_s: float, progress: Callable[[str], None]
+) -> tuple[str, bool]:
+    """Run the motion through the started suite; return (outcome, fell)."""
+    monitor = _Monitor(session.node)
+    _call(session, "planner", "load", progress)
+    _call(session, "driver", "enable", progress, value=True)
+    session.sleep(SETTLE_AFTER_ENABLE_S)
+    standing_z: float | None = None
+    if settings.sim == "physics":
+        _call(session, "sim_hardware", "release_support", progress)
+        session.sleep(SETTLE_AFTER_RELEASE_S)
+        standing_z = monitor.base_z
+    _call(session, "stabilizer", "start", progress)
+    started = time.monotonic()
+    deadline = started + duration_s + 30.0  # ramp-in + playback + slack
+    finished_at: float | None = None
+    while not session.stop_requested:
+        session.sleep(0.1)
+        now = time.monotonic()
+        fell = (
+            standing_z is not None and monitor.base_z is not None and monitor.base_z < FALL_HEIGHT_FRACTION * standing_z
+        )
+        z = f", base z {monitor.base_z:.3f} m" if monitor.base_z is not None else ""
+        sys.stderr.write(f"\r{settings.motion}: {monitor.state:<9} {now - started:6.1f} s{z}   ")
+        sys.stderr.flush()
+        if fell:
+            return "fell", True
+        if session.crashed():
+            return f"nodes stopped on their own: {session.crashed()}", False
+        if monitor.state in ("holding", "stopped") and finished_at is None:
+            finished_at = now
+            if "finished" not in monitor.reason:
+                return f"stabilizer {monitor.state}: {monitor.reason}", False
+        if finished_at is not None and now - finished_at >= settings.hold_after_s:
+            return "completed", False
+        if now > deadline:
+            return f"timed out in state {monitor.state}", False
+    return "interrupted", False
+
+
+def run_experiment(settings: ExperimentSettings, progress: Callable[[str], None] = print) -> ExperimentResult:
+    """Plan or reuse, run, record and report one experiment; the folder holds logs/, bag/, report/."""
+    from rh5_msgs_py.trajectory_file import load_trajectory  # noqa: PLC0415
+
+    folder = run_dir(settings.output_root / "experiments", settings.motion)
+    trajectory, cached = planned_trajectory(settings, progress)
+    progress(f"trajectory: {trajectory} ({'cached' if cached else 'planned now'})")
+    duration_s = float(load_trajectory(trajectory).times[-1])
+    result = ExperimentResult(folder, trajectory, folder / "bag")
+    folder.mkdir(parents=True)
+    bringup = experiment_bringup(settings, trajectory, result.bag)
+    with SuiteSession(bringup, folder / "logs", observer_name="rh5_experiment") as session:
+        progress(f"experiment {settings.motion}: ROS_DOMAIN_ID={session.run.domain_id}, folder {folder}")
+        missing = session.start()
+        if missing:
+            session.close()
+            msg = f"never appeared in the ROS graph: {sorted(missing)} (logs in {folder / 'logs'})"
+            raise ExperimentError(msg)
+        try:
+            result.outcome, result.fell = _play(session, settings, duration_s, progress)
+        finally:
+            sys.stderr.write("\n")
+            result.exit_codes = session.close()
+    progress(f"experiment {settings.motion}: {result.outcome}; node exit codes {result.exit_codes}")
+    if settings.report:
+        from rh5_bringup.report import write_report  # noqa: PLC0415
+
+        result.report = write_report(result.bag, folder / "report")
+    return result
