@@ -116,14 +116,24 @@ def _parse_overrides(pairs: list[str]) -> dict[str, Any]:
 def experiment(args: argparse.Namespace) -> int:
     """``rh5 experiment``: plan or reuse, run on the simulated robot, record, report."""
     from rh5_bringup.experiment import ExperimentError, ExperimentSettings, run_experiment  # noqa: PLC0415
-    from rh5_planner.motions import MOTIONS, MotionError, get_motion  # noqa: PLC0415
+    from rh5_planner.motions import MotionError, get_motion  # noqa: PLC0415
 
     try:
         overrides = _parse_overrides(args.set)
         get_motion(args.motion, overrides)
+        node_parameters: dict[str, dict[str, Any]] = {}
+        for dotted, value in _parse_overrides(args.param).items():
+            node, sep, key = dotted.partition(".")
+            if not sep or not key:
+                msg = f"--param {dotted}: expected NODE.KEY=VALUE"
+                raise ValueError(msg)
+            node_parameters.setdefault(node, {})[key] = value
+        nodes = {n.name for n in load_bringup(args.bringup).nodes}
+        if set(node_parameters) - nodes:
+            msg = f"--param: no nodes {sorted(set(node_parameters) - nodes)} in the bringup (have {sorted(nodes)})"
+            raise ValueError(msg)
     except (ValueError, KeyError, MotionError) as err:
-        known = f" (motions: {', '.join(MOTIONS)})" if args.motion not in MOTIONS else ""
-        print(f"rh5 experiment: {err}{known}", file=sys.stderr)
+        print(f"rh5 experiment: {err}", file=sys.stderr)
         return 2
     settings = ExperimentSettings(
         args.motion,
@@ -134,6 +144,7 @@ def experiment(args: argparse.Namespace) -> int:
         hold_after_s=args.hold,
         bringup=args.bringup,
         report=not args.no_report,
+        node_parameters=node_parameters,
     )
     try:
         result = run_experiment(settings, progress=lambda text: print(f"rh5 experiment: {text}", flush=True))
@@ -181,6 +192,13 @@ def build_parser() -> argparse.ArgumentParser:
     exp.add_argument("--hold", type=float, default=1.0, help="seconds to keep holding after the motion ends")
     exp.add_argument("--bringup", type=Path, default=None, help="bringup description YAML")
     exp.add_argument("--no-report", action="store_true", help="record only")
+    exp.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="NODE.KEY=VALUE",
+        help="node parameter, e.g. stabilizer.balance_correction=true",
+    )
     rep = commands.add_parser("report", help="write the report of a recorded experiment bag")
     rep.add_argument("bag", type=Path, help="rosbag2 folder")
     rep.add_argument("--joints", default="", help="extra joints to plot, comma separated")

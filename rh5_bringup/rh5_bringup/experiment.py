@@ -51,6 +51,8 @@ class ExperimentSettings:
     max_iterations: int = 200
     bringup: Path | None = None
     report: bool = True
+    node_parameters: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    """Extra node parameters by node name (applied last)."""
 
 
 @dataclass
@@ -133,6 +135,8 @@ def experiment_bringup(settings: ExperimentSettings, trajectory: Path, bag: Path
             initial_base_orientation=[float(v) for v in data.base_quaternions_xyzw[0]],
             hand_payload_kg=payload,
         )
+    for node, parameters in settings.node_parameters.items():
+        bringup = bringup.with_parameters(node, **parameters)
     return bringup
 
 
