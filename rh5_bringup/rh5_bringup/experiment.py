@@ -131,8 +131,7 @@ def experiment_bringup(settings: ExperimentSettings, trajectory: Path, bag: Path
         bringup = bringup.with_parameters(
             "sim_hardware",
             initial_joint_positions=[float(v) for v in data.joint_positions[0]],
-            initial_base_position=[float(v) for v in data.base_positions[0]],
-            initial_base_orientation=[float(v) for v in data.base_quaternions_xyzw[0]],
+            initial_base_xy=[float(v) for v in data.base_positions[0, :2]],
             hand_payload_kg=payload,
         )
     for node, parameters in settings.node_parameters.items():

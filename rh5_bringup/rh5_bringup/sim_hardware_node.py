@@ -5,7 +5,16 @@ driver's NDLCom commands, runs the motor, transmission and cascaded-loop model o
 actuator in a dedicated thread, and answers every command burst at once with telemetry
 (ticking every 1 ms on its own when no command comes).
 Kinematic mode: the actuators move free of whole-body physics, starting in the nominal
-standing pose. Faults are injected through parameters (see params/sim_hardware.yaml).
+standing pose. Physics mode: the actuators drive the floating-base RH5 in PyBullet on flat
+ground (rh5_bringup.sim.physics: coupling, contacts, armature), held by a crane until
+``~/release_support``; the true base pose and foot wrenches are published at
+``ground_truth_rate_hz``. Faults are injected through parameters (see params/sim_hardware.yaml).
+
+Time: the physics advances in 1 ms steps with the board time, which the wall clock and the
+driver's 1 kHz command bursts pace, so the whole suite runs on wall time and needs no /clock.
+When the host cannot keep up, a cycle replays at most 3 ms of board time (the rest is counted
+as ``counts.time_not_replayed_us``): the simulation then runs slower than real time rather than
+replaying a backlog it cannot afford. ``publish_clock`` publishes the simulated time for tools that want it.
 """
 
 from __future__ import annotations
@@ -13,15 +22,19 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from std_srvs.srv import Trigger
 
 from rh5_bringup.ndlcom.board_map import load_board_map
 from rh5_bringup.sim.actuators import ActuatorBank
 from rh5_bringup.sim.boards import BoardEmulator, BoardsServer, Faults
+from rh5_bringup.sim.physics import PhysicsActuatorBank, build_physics
 from rh5_bringup.transports import open_transport
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py import interfaces
-from rh5_msgs_py.names import ACTUATOR_NAMES, NUM_JOINTS
+from rh5_msgs_py.names import ACTUATOR_NAMES, FOOT_FRAMES, NUM_JOINTS
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
+
+PHYSICS_MAX_CATCH_UP_NS = 3_000_000
 
 
 class SimHardwareNode(SuiteNode):
@@ -30,9 +43,6 @@ class SimHardwareNode(SuiteNode):
     def __init__(self) -> None:
         super().__init__(interfaces.SIM_HARDWARE_NODE, "rh5_bringup", "params/sim_hardware.yaml")
         params = self.params
-        if params["mode"] != "kinematic":
-            msg = "mode 'physics' (PyBullet) is not available yet: use mode:=kinematic"
-            raise ValueError(msg)
         unknown = set(params["silent_boards"]) - set(ACTUATOR_NAMES)
         if unknown:
             msg = f"parameter silent_boards: unknown actuators {sorted(unknown)}"
@@ -45,8 +55,13 @@ class SimHardwareNode(SuiteNode):
         else:
             transport = open_transport("can", interface="virtual", channel="rh5", receivers=board_map.addresses())
         self.transport = transport
-        bank = ActuatorBank()
-        bank.reset(robot_mapper().to_actuators(np.zeros(NUM_JOINTS)).position)
+        self.physics: PhysicsActuatorBank | None = None
+        bank: Any
+        if params["mode"] == "physics":
+            bank = self.physics = self._start_physics(params)
+        else:
+            bank = ActuatorBank()
+            bank.reset(robot_mapper().to_actuators(np.zeros(NUM_JOINTS)).position)
         faults = Faults(
             drop_rate=params["drop_rate"],
             delay_s=params["delay_s"],
@@ -55,10 +70,87 @@ class SimHardwareNode(SuiteNode):
             sensor_noise_std=params["sensor_noise_std"],
         )
         self.emulator = BoardEmulator(board_map, transport, bank, faults)
+        if self.physics is not None:  # replay at most 3 ms of a stall: the simulation falls behind instead
+            self.emulator.max_catch_up_ns = PHYSICS_MAX_CATCH_UP_NS
         self.add_post_set_parameters_callback(self._update_faults)
         self.server = BoardsServer(self.emulator)
         self.context.on_shutdown(self.server.stop)
         self.server.start()
+
+    def _start_physics(self, params: dict[str, Any]) -> PhysicsActuatorBank:
+        """The PyBullet world coupled to the boards (stepped under a lock: PyBullet is not thread-safe), its
+        ground-truth publishers, the crane's release service and, if asked for, /clock."""
+        initial = list(params["initial_joint_positions"])
+        if initial and len(initial) != NUM_JOINTS:
+            msg = f"parameter initial_joint_positions: {len(initial)} values, expected {NUM_JOINTS} or none"
+            raise ValueError(msg)
+        physics = build_physics(
+            params["friction_coefficient"],
+            params["hand_payload_kg"],
+            np.array(initial, dtype=np.float64) if initial else None,
+            support=params["support"],
+        )
+        xy = list(params["initial_base_xy"])
+        if xy:
+            if len(xy) != 2:
+                msg = f"parameter initial_base_xy: {len(xy)} values, expected 2 (x, y) or none"
+                raise ValueError(msg)
+            physics.world.shift_base_xy(np.array(xy, dtype=np.float64))
+        self._publish_pose = self.advertise(interfaces.SIM_BASE_POSE)
+        self._publish_wrench = {
+            "left": self.advertise(interfaces.SIM_WRENCH_LEFT),
+            "right": self.advertise(interfaces.SIM_WRENCH_RIGHT),
+        }
+        self._publish_clock = self.advertise(interfaces.CLOCK) if params["publish_clock"] else None
+        self.create_service(Trigger, interfaces.RELEASE_SUPPORT_SERVICE, self._release_support)
+        self.create_timer(1.0 / params["ground_truth_rate_hz"], self._publish_ground_truth)
+        self.get_logger().info(
+            f"physics: {physics.world.total_mass:.2f} kg, friction {params['friction_coefficient']}, "
+            f"support {'on' if params['support'] else 'off'}"
+        )
+        return physics
+
+    def _release_support(self, _request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        """Let the crane go: from now on the robot stands on its own feet (or falls)."""
+        assert self.physics is not None
+        with self.physics.lock:
+            released = self.physics.world.release_support()
+        response.success = released
+        response.message = "support released" if released else "the base was not supported"
+        self.get_logger().info(response.message)
+        return response
+
+    def _publish_ground_truth(self) -> None:
+        """The true base pose (frame "world") and each foot's contact wrench (in and about its sole frame)."""
+        assert self.physics is not None
+        from geometry_msgs.msg import PoseStamped, WrenchStamped  # noqa: PLC0415 - physics mode only
+
+        world = self.physics.world
+        with self.physics.lock:
+            pose = world.base_pose()
+            wrenches = world.foot_wrenches()
+            sim_ns = world.steps * round(world.time_step * 1e9)
+        stamp = self.get_clock().now().to_msg()
+        msg = PoseStamped()
+        msg.header.stamp, msg.header.frame_id = stamp, "world"
+        p, o = pose.position, pose.orientation
+        msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = float(p[0]), float(p[1]), float(p[2])
+        o_msg = msg.pose.orientation
+        o_msg.x, o_msg.y, o_msg.z, o_msg.w = float(o[0]), float(o[1]), float(o[2]), float(o[3])
+        self._publish_pose(msg)
+        for side, wrench in wrenches.items():
+            force, moment = wrench.in_sole_frame()
+            out = WrenchStamped()
+            out.header.stamp, out.header.frame_id = stamp, FOOT_FRAMES[side]
+            out.wrench.force.x, out.wrench.force.y, out.wrench.force.z = (float(v) for v in force)
+            out.wrench.torque.x, out.wrench.torque.y, out.wrench.torque.z = (float(v) for v in moment)
+            self._publish_wrench[side](out)
+        if self._publish_clock is not None:
+            from rosgraph_msgs.msg import Clock  # noqa: PLC0415
+
+            clock = Clock()
+            clock.clock.sec, clock.clock.nanosec = divmod(sim_ns, 1_000_000_000)
+            self._publish_clock(clock)
 
     def _update_faults(self, _changed: list[Any]) -> None:
         """Fault-injection parameters act at once (the spec callback has already validated them)."""
@@ -79,18 +171,31 @@ class SimHardwareNode(SuiteNode):
 
     def summary(self) -> dict[str, Any]:
         """Adds the simulation mode, frame counts and loop timing to the base summary."""
-        return {
+        summary = {
             **super().summary(),
             "mode": self.params["mode"],
             "boards_emulated": len(self.emulator.board_map),
             "counts": dict(self.emulator.counts),
             "loop": self.server.stats().as_dict(),
         }
+        if self.physics is not None:
+            counts = self.physics.counts
+            summary["physics"] = {
+                "physics_steps": counts.physics_steps,
+                "dropped_steps": counts.dropped_steps,
+                "kinematics_errors": counts.kinematics_errors,
+                "sim_time_s": self.physics.world.time,
+                "supported": self.physics.world.supported,
+            }
+        return summary
 
     def destroy_node(self) -> None:
         """Stop the loop, then close the link."""
         self.server.stop()
         self.transport.shutdown()
+        if self.physics is not None:
+            with self.physics.lock:
+                self.physics.world.close()
         super().destroy_node()
 
 

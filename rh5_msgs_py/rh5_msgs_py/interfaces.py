@@ -61,6 +61,7 @@ ACTUATOR_STATES: Final = Topic("actuator_states", "sensor_msgs/msg/JointState", 
 SIM_BASE_POSE: Final = Topic("sim/base_pose", "geometry_msgs/msg/PoseStamped", STREAM_QOS)
 SIM_WRENCH_LEFT: Final = Topic("sim/wrench/left_foot", "geometry_msgs/msg/WrenchStamped", STREAM_QOS)
 SIM_WRENCH_RIGHT: Final = Topic("sim/wrench/right_foot", "geometry_msgs/msg/WrenchStamped", STREAM_QOS)
+CLOCK: Final = Topic("/clock", "rosgraph_msgs/msg/Clock", STREAM_QOS)  # sim time, only when asked for
 DRIVER_ESTOP: Final = Topic("driver/estopped", "std_msgs/msg/Bool", LATCHED_QOS)
 """The driver's emergency-stop latch, published on every change (the stabilizer stops while it is set)."""
 DIAGNOSTICS: Final = Topic("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", EVENT_QOS)
@@ -93,6 +94,7 @@ HOLD_SERVICE: Final = "~/hold"  # std_srvs/Trigger, stabilizer
 ENABLE_SERVICE: Final = "~/enable"  # std_srvs/SetBool, driver
 ESTOP_SERVICE: Final = "~/estop"  # std_srvs/Trigger, driver (latching)
 RESET_ESTOP_SERVICE: Final = "~/reset_estop"  # std_srvs/Trigger, driver
+RELEASE_SUPPORT_SERVICE: Final = "~/release_support"  # std_srvs/Trigger, sim_hardware (physics mode)
 
 # Node names (also the keys of the bringup description).
 PLANNER_NODE: Final = "planner"

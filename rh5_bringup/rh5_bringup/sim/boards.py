@@ -110,6 +110,7 @@ class BoardEmulator:
         self.counts: Counter[str] = Counter()
         self._delayed: deque[tuple[int, bytes]] = deque()
         self.board_time_us = 0
+        self.max_catch_up_ns = MAX_CATCH_UP_NS  # physics mode: a few ms (its steps cost a third of a cycle each)
         self._last_ns: int | None = None
 
     def set_faults(self, faults: Faults) -> None:
@@ -155,7 +156,10 @@ class BoardEmulator:
         setpoint = np.where(mode >= int(Mode.POSITION), self.setpoint, 0.0)
         # Real time passes for the actuators even when this loop is late: step the time elapsed since the last
         # cycle (at most MAX_CATCH_UP_NS), in steps no longer than the boards' own 1 ms period.
-        elapsed = period_ns if self._last_ns is None else min(max(now_ns - self._last_ns, 1_000), MAX_CATCH_UP_NS)
+        gap = period_ns if self._last_ns is None else max(now_ns - self._last_ns, 1_000)
+        elapsed = min(gap, self.max_catch_up_ns)
+        if gap > elapsed:
+            self.counts["time_not_replayed_us"] += (gap - elapsed) // 1000
         self._last_ns = now_ns
         steps = max(1, -(-elapsed // BOARD_PERIOD_NS))
         for _ in range(steps):

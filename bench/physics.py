@@ -1,0 +1,62 @@
+"""Cost of one physics-mode board cycle (boards + mapper + PyBullet), split into its parts: median and p99.
+
+Runs the coupled simulation of rh5_bringup.sim.physics in this process, the robot standing on its boards
+(crane released), and times each part of every cycle. Usage: ``python bench/physics.py [--cycles N]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from rh5_bringup.sim.actuators import Mode
+from rh5_bringup.sim.physics import build_physics
+from rh5_msgs_py.names import NUM_ACTUATORS
+
+
+def main() -> None:
+    """Time ``--cycles`` cycles after a settling second; print median and p99 per part in microseconds."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cycles", type=int, default=3000)
+    args = parser.parse_args()
+    coupled = build_physics()
+    world, bank = coupled.world, coupled.bank
+    mode = np.full(NUM_ACTUATORS, int(Mode.POSITION))
+    target = coupled.position.copy()
+    for k in range(1000):
+        if k == 200:
+            world.release_support()
+        coupled.step(1e-3, mode, target)
+    parts = {name: np.empty(args.cycles) for name in ("boards", "mapper", "pybullet", "total")}
+    clock = time.perf_counter_ns
+    for k in range(args.cycles):
+        t0 = clock()
+        np.copyto(bank.state.position, np.clip(coupled.position, bank.params.position_min, bank.params.position_max))
+        np.copyto(bank.state.velocity, coupled.velocity)
+        measured = bank.step(1e-3, mode, target)
+        t1 = clock()
+        tau = coupled.torques(measured.force)
+        t2 = clock()
+        world.step(tau, coupled.v)
+        t3 = clock()
+        coupled._read()  # the joint read and map: the other half of the mapper share
+        t4 = clock()
+        q_read = world.joint_state()  # the PyBullet part of the read, for the split
+        t5 = clock()
+        del q_read
+        parts["boards"][k] = t1 - t0
+        parts["pybullet"][k] = t3 - t2 + (t5 - t4)
+        parts["mapper"][k] = t2 - t1 + (t4 - t3) - (t5 - t4)
+        parts["total"][k] = t4 - t0
+    print(f"physics cycle over {args.cycles} cycles (us):")
+    for name, values in parts.items():
+        us = values / 1e3
+        print(f"  {name:<9} median {np.median(us):7.1f}  p99 {np.percentile(us, 99):7.1f}")
+    print(f"  base drift {np.linalg.norm(world.base_pose().position[:2]) * 1e3:.2f} mm, mass {world.total_mass:.1f} kg")
+    world.close()
+
+
+if __name__ == "__main__":
+    main()
