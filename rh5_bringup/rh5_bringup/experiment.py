@@ -130,8 +130,8 @@ def experiment_bringup(settings: ExperimentSettings, trajectory: Path, bag: Path
         payload = float(data.motion.get("parameters", {}).get("payload_kg_per_hand", 0.0))
         bringup = bringup.with_parameters(
             "sim_hardware",
-            initial_joint_positions=[float(v) for v in data.joint_positions[0]],
-            initial_base_xy=[float(v) for v in data.base_positions[0, :2]],
+            initial_joint_positions=[float(v) for v in data.joint_positions()[0]],
+            initial_base_xy=[float(v) for v in data.base_positions()[0, :2]],
             hand_payload_kg=payload,
         )
     for node, parameters in settings.node_parameters.items():
