@@ -134,6 +134,8 @@ def experiment_bringup(settings: ExperimentSettings, trajectory: Path, bag: Path
             initial_base_xy=[float(v) for v in data.base_positions()[0, :2]],
             hand_payload_kg=payload,
         )
+        # the simulated light joints keep a small residual ringing (sim.physics docstring: peaks ~0.12 rad/s)
+        bringup = bringup.with_parameters("stabilizer", rest_velocity_rad_s=0.25)
     for node, parameters in settings.node_parameters.items():
         bringup = bringup.with_parameters(node, **parameters)
     return bringup

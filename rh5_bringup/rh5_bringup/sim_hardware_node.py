@@ -89,6 +89,7 @@ class SimHardwareNode(SuiteNode):
             params["hand_payload_kg"],
             np.array(initial, dtype=np.float64) if initial else None,
             support=params["support"],
+            tune_to_load=params["tune_boards_to_load"],
         )
         xy = list(params["initial_base_xy"])
         if xy:

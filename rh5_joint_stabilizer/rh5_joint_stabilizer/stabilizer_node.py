@@ -70,7 +70,9 @@ class StabilizerNode(SuiteNode):
             np.asarray(limits.torque_max),
             ramp_max_velocity=params["ramp_max_velocity"],
             ramp_max_acceleration=params["ramp_max_acceleration"],
-            safety=SafetyLimits(int(params["state_timeout_s"] * 1e9), params["max_tracking_error_rad"]),
+            safety=SafetyLimits(
+                int(params["state_timeout_s"] * 1e9), params["max_tracking_error_rad"], params["rest_velocity_rad_s"]
+            ),
             on_event=self._log_event,
             correction=self.balance,
         )
