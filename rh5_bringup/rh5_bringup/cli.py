@@ -159,16 +159,13 @@ def experiment(args: argparse.Namespace) -> int:
 
 
 def report(args: argparse.Namespace) -> int:
-    """``rh5 report BAG``: (re)write the report of a recording."""
-    from rh5_bringup.report import write_report  # noqa: PLC0415
+    """``rh5 report BAG``: (re)write the report of a recording (exit 2 for a path that is not a readable bag)."""
+    from rh5_bringup.report.__main__ import main as report_main  # noqa: PLC0415
 
-    if not (args.bag / "metadata.yaml").exists():
-        print(f"rh5 report: {args.bag} is not a rosbag2 folder (no metadata.yaml)", file=sys.stderr)
-        return 2
-    joints = [j for j in args.joints.split(",") if j] if args.joints else []
-    folder = write_report(args.bag, args.out, joints)
-    print(f"rh5 report: {folder}")
-    return 0
+    argv = [str(args.bag), "--joints", args.joints]
+    if args.out is not None:
+        argv += ["--out", str(args.out)]
+    return report_main(argv)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -248,7 +248,14 @@ def run_experiment(settings: ExperimentSettings, progress: Callable[[str], None]
             result.exit_codes = session.close()
     progress(f"experiment {settings.motion}: {result.outcome}; node exit codes {result.exit_codes}")
     if settings.report:
-        from rh5_bringup.report import write_report  # noqa: PLC0415
+        from rh5_bringup.report import ReportError, build_report  # noqa: PLC0415
 
-        result.report = write_report(result.bag, folder / "report")
+        try:
+            report = build_report(result.bag, folder / "report")
+        except ReportError as err:
+            progress(f"no report: {err}")
+        else:
+            result.report = report.folder
+            for line in report.verdicts:
+                progress(line)
     return result

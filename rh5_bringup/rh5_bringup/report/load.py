@@ -1,0 +1,424 @@
+"""Read a recorded rosbag2 folder (MCAP, CDR) into numpy arrays, one record per topic of the suite.
+
+Topics are found by their contract name (rh5_msgs_py.interfaces) at the end of the recorded name, so
+``/joint_states`` and ``/rh5/joint_states`` both match. Times are seconds since the bag's first
+message: the header stamps where the publisher set them on the recorder's clock (sender time, free of
+recording latency), else the time the recorder received the message. The 1 kHz streams are decoded
+in batches by rh5_bringup.report.cdr; the few other messages go through rosbags' deserializer.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+from numpy.typing import NDArray
+from rosbags.highlevel import AnyReader, AnyReaderError
+
+from rh5_bringup.report.cdr import CdrError, FloatArray, decode_joint_states, decode_stamped_floats
+from rh5_msgs_py import interfaces
+from rh5_msgs_py.names import ACTUATOR_NAMES, JOINT_NAMES
+
+BATCH: Final = 8192
+"""Messages decoded per batch: bounds the raw bytes held in memory (~11 MB for 32-joint JointStates)."""
+STAMP_TOLERANCE_NS: Final = 5_000_000_000
+"""Header stamps within this of the receive times (median) are on the recorder's clock and are used."""
+
+
+class ReportError(Exception):
+    """The report cannot be made (bad arguments or input)."""
+
+
+class NotABagError(ReportError):
+    """The path is not a readable rosbag2 folder."""
+
+
+@dataclass(frozen=True)
+class JointSeries:
+    """A JointState stream: times (n,) s, and (n, len(names)) arrays, NaN where a message had no value."""
+
+    topic: str
+    names: tuple[str, ...]
+    t: FloatArray
+    position: FloatArray
+    velocity: FloatArray
+    effort: FloatArray
+    time_source: str
+
+    def index(self, name: str) -> int | None:
+        """Column of ``name`` (None if the stream never carried it)."""
+        return self.names.index(name) if name in self.names else None
+
+
+@dataclass(frozen=True)
+class PoseSeries:
+    """geometry_msgs/PoseStamped stream: times (n,) s, positions (n, 3) m, quaternions (n, 4) xyzw."""
+
+    topic: str
+    t: FloatArray
+    position: FloatArray
+    quaternion_xyzw: FloatArray
+    time_source: str
+
+
+@dataclass(frozen=True)
+class WrenchSeries:
+    """geometry_msgs/WrenchStamped stream: times (n,) s, force (n, 3) N, torque (n, 3) Nm."""
+
+    topic: str
+    t: FloatArray
+    force: FloatArray
+    torque: FloatArray
+    time_source: str
+
+
+@dataclass(frozen=True)
+class BoolSeries:
+    """std_msgs/Bool stream (receive times)."""
+
+    topic: str
+    t: FloatArray
+    value: NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class PlannedJoints:
+    """One planned_trajectory message: received at ``t`` (s); knot times (N,) s from its start."""
+
+    t: float
+    names: tuple[str, ...]
+    times: FloatArray
+    positions: FloatArray
+    velocities: FloatArray | None
+
+
+@dataclass(frozen=True)
+class PlannedBase:
+    """One planned_base_trajectory message: knot times (N,) s, positions (N, 3) m, quaternions (N, 4) xyzw."""
+
+    t: float
+    times: FloatArray
+    positions: FloatArray
+    quaternion_xyzw: FloatArray
+
+
+@dataclass(frozen=True)
+class DiagnosticRecord:
+    """One DiagnosticStatus as published: time (s), name, level (0 OK .. 3 STALE), message, key/values."""
+
+    t: float
+    name: str
+    level: int
+    message: str
+    values: dict[str, str]
+
+
+@dataclass
+class Recording:
+    """Everything of a bag the report uses; None / empty where a topic was not recorded."""
+
+    path: Path
+    origin_ns: int
+    duration_s: float
+    topic_counts: dict[str, int]
+    joint_commands: JointSeries | None = None
+    joint_states: JointSeries | None = None
+    actuator_commands: JointSeries | None = None
+    actuator_states: JointSeries | None = None
+    base_pose: PoseSeries | None = None
+    wrench_left: WrenchSeries | None = None
+    wrench_right: WrenchSeries | None = None
+    estopped: BoolSeries | None = None
+    planned_joints: list[PlannedJoints] = field(default_factory=list)
+    planned_base: list[PlannedBase] = field(default_factory=list)
+    diagnostics: list[DiagnosticRecord] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+
+# --- finding the suite's topics in the bag ----------------------------------------------------------------------------
+
+
+def _match_score(recorded: str, contract: str) -> int:
+    """2 for the exact (absolute) name, 1 for a namespaced one, 0 for another topic."""
+    name = contract.lstrip("/")
+    if recorded.lstrip("/") == name:
+        return 2
+    return 1 if recorded.endswith("/" + name) else 0
+
+
+def find_connections(connections: Iterable[Any], contract: interfaces.Topic) -> list[Any]:
+    """The bag's connections of a contract topic (best name match only, right type only)."""
+    scored = [(_match_score(c.topic, contract.name), c) for c in connections if c.msgtype == contract.type]
+    best = max((s for s, _ in scored), default=0)
+    return [c for s, c in scored if s == best and best > 0]
+
+
+# --- times -----------------------------------------------------------------------------------------------------------
+
+
+def pick_times(stamps_ns: NDArray[np.int64], log_ns: NDArray[np.int64]) -> tuple[NDArray[np.int64], str]:
+    """Header stamps if every one is set and they sit on the recorder's clock, else the receive times."""
+    set_everywhere = bool(len(stamps_ns)) and bool((stamps_ns > 0).all())
+    if set_everywhere and np.median(np.abs(stamps_ns - log_ns)) < STAMP_TOLERANCE_NS:
+        return stamps_ns, "header"
+    return log_ns, "receive"
+
+
+def _seconds(ns: NDArray[np.int64], origin_ns: int) -> FloatArray:
+    return (ns - origin_ns).astype(np.float64) / 1e9
+
+
+# --- accumulators: raw messages in, arrays out --------------------------------------------------------------------
+
+
+class _Batches:
+    """Collects raw messages with receive times and decodes them every BATCH messages."""
+
+    def __init__(self, decode: Callable[[list[bytes]], Any]) -> None:
+        self._decode = decode
+        self._raws: list[bytes] = []
+        self._log: list[int] = []
+        self.decoded: list[tuple[Any, NDArray[np.int64]]] = []
+
+    def add(self, raw: bytes, log_ns: int) -> None:
+        self._raws.append(raw)
+        self._log.append(log_ns)
+        if len(self._raws) >= BATCH:
+            self.flush()
+
+    def flush(self) -> None:
+        if self._raws:
+            self.decoded.append((self._decode(self._raws), np.asarray(self._log, dtype=np.int64)))
+            self._raws, self._log = [], []
+
+
+def _column_order(blocks: Iterable[Sequence[str]], contract: Sequence[str]) -> tuple[str, ...]:
+    seen: dict[str, None] = {}
+    for names in blocks:
+        seen.update(dict.fromkeys(names))
+    if set(seen) <= set(contract):
+        return tuple(n for n in contract if n in seen)
+    return tuple(seen)
+
+
+def _joint_series(topic: str, batches: _Batches, contract: Sequence[str], origin_ns: int) -> JointSeries | None:
+    batches.flush()
+    names = _column_order([b.names for blocks, _ in batches.decoded for b in blocks], contract)
+    total = sum(len(log) for _, log in batches.decoded)
+    if total == 0:
+        return None
+    arrays = {f: np.full((total, len(names)), np.nan) for f in ("position", "velocity", "effort")}
+    stamps = np.zeros(total, dtype=np.int64)
+    log_ns = np.concatenate([log for _, log in batches.decoded])
+    column = {n: i for i, n in enumerate(names)}
+    start = 0
+    while batches.decoded:  # release each batch once copied: peak memory stays near one copy of the stream
+        blocks, log = batches.decoded.pop(0)
+        for block in blocks:
+            rows = start + block.rows
+            stamps[rows] = block.stamps_ns
+            cols = np.array([column[n] for n in block.names], dtype=np.intp)
+            every_column = len(cols) == len(names) and bool((cols == np.arange(len(names))).all())
+            for f, out in arrays.items():
+                values = getattr(block, f)
+                if values is None or not len(cols) or values.shape[1] != len(cols):
+                    continue
+                if every_column:
+                    out[rows] = values
+                else:
+                    out[rows[:, None], cols[None, :]] = values
+        start += len(log)
+    ns, source = pick_times(stamps, log_ns)
+    if len(ns) > 1 and not bool((np.diff(ns) >= 0).all()):
+        order = np.argsort(ns, kind="stable")
+        ns = ns[order]
+        arrays = {f: a[order] for f, a in arrays.items()}
+    return JointSeries(
+        topic,
+        names,
+        _seconds(ns, origin_ns),
+        arrays["position"],
+        arrays["velocity"],
+        arrays["effort"],
+        source,
+    )
+
+
+def _stamped(batches: _Batches, origin_ns: int) -> tuple[FloatArray, FloatArray, str] | None:
+    batches.flush()
+    if not batches.decoded:
+        return None
+    stamps = np.concatenate([d[0] for d, _ in batches.decoded])
+    values = np.concatenate([d[1] for d, _ in batches.decoded])
+    log_ns = np.concatenate([log for _, log in batches.decoded])
+    ns, source = pick_times(stamps, log_ns)
+    order = np.argsort(ns, kind="stable")
+    return _seconds(ns[order], origin_ns), values[order], source
+
+
+# --- the few low-rate messages (rosbags objects) --------------------------------------------------------------------
+
+
+def _duration_s(d: Any) -> float:
+    return d.sec + d.nanosec * 1e-9
+
+
+def _planned_joints(msg: Any, t: float) -> PlannedJoints:
+    points = msg.points
+    names = tuple(msg.joint_names)
+    times = np.array([_duration_s(p.time_from_start) for p in points], dtype=np.float64)
+    positions = np.stack([p.positions for p in points]) if points else np.zeros((0, len(names)))
+    velocities = None
+    if points and all(len(p.velocities) == len(names) for p in points):
+        velocities = np.stack([p.velocities for p in points]).astype(np.float64)
+    return PlannedJoints(t, names, times, positions.astype(np.float64), velocities)
+
+
+def _planned_base(msg: Any, t: float) -> PlannedBase:
+    points = [p for p in msg.points if p.transforms]
+    times = np.array([_duration_s(p.time_from_start) for p in points], dtype=np.float64)
+    tf = [p.transforms[0] for p in points]
+    positions = np.array([(x.translation.x, x.translation.y, x.translation.z) for x in tf], dtype=np.float64)
+    quats = np.array([(x.rotation.x, x.rotation.y, x.rotation.z, x.rotation.w) for x in tf], dtype=np.float64)
+    return PlannedBase(t, times, positions.reshape(-1, 3), quats.reshape(-1, 4))
+
+
+def _stamp_or_log(header: Any, log_ns: int) -> int:
+    ns = header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
+    return ns if ns > 0 and abs(ns - log_ns) < STAMP_TOLERANCE_NS else log_ns
+
+
+def _diagnostics(msg: Any, log_ns: int, origin_ns: int) -> list[DiagnosticRecord]:
+    t = (_stamp_or_log(msg.header, log_ns) - origin_ns) / 1e9
+    return [
+        DiagnosticRecord(t, s.name, int(s.level), s.message, {kv.key: kv.value for kv in s.values}) for s in msg.status
+    ]
+
+
+def deserialize(reader: AnyReader, raw: bytes, typename: str) -> Any:
+    """rosbags' CDR deserializer, tolerating bytes after the message's end.
+
+    rclpy.serialization.serialize_message returns a buffer longer than the encoding (the estimated
+    size); rosbags refuses more than 3 such bytes, the content before them is still a whole message.
+    """
+    try:
+        return reader.deserialize(raw, typename)
+    except AnyReaderError as err:
+        if "size mismatch" not in str(err):
+            raise
+    msgdef = reader.typestore.get_msgdef(typename)
+    decode = msgdef.deserialize_cdr_le if raw[1] else msgdef.deserialize_cdr_be
+    message, _ = decode(memoryview(raw)[4:], 0, msgdef.cls, reader.typestore)
+    return message
+
+
+# --- the bag ---------------------------------------------------------------------------------------------------------
+
+_JOINT_STREAMS: Final = {
+    "joint_commands": (interfaces.JOINT_COMMANDS, JOINT_NAMES),
+    "joint_states": (interfaces.JOINT_STATES, JOINT_NAMES),
+    "actuator_commands": (interfaces.ACTUATOR_COMMANDS, ACTUATOR_NAMES),
+    "actuator_states": (interfaces.ACTUATOR_STATES, ACTUATOR_NAMES),
+}
+_FLOAT_STREAMS: Final = {
+    "base_pose": (interfaces.SIM_BASE_POSE, 7),
+    "wrench_left": (interfaces.SIM_WRENCH_LEFT, 6),
+    "wrench_right": (interfaces.SIM_WRENCH_RIGHT, 6),
+}
+_OBJECT_TOPICS: Final = {
+    "planned_joints": interfaces.PLANNED_TRAJECTORY,
+    "planned_base": interfaces.PLANNED_BASE_TRAJECTORY,
+    "diagnostics": interfaces.DIAGNOSTICS,
+    "estopped": interfaces.DRIVER_ESTOP,
+}
+
+
+def open_bag(bag: Path) -> AnyReader:
+    """An opened AnyReader for a rosbag2 folder; NotABagError with the reason otherwise."""
+    bag = Path(bag)
+    if not bag.is_dir() or not (bag / "metadata.yaml").is_file():
+        what = "does not exist" if not bag.exists() else "has no metadata.yaml"
+        msg = f"{bag} is not a rosbag2 folder: it {what}"
+        raise NotABagError(msg)
+    reader = AnyReader([bag])
+    try:
+        reader.open()
+    except (AnyReaderError, FileNotFoundError, OSError, ValueError, KeyError) as err:
+        msg = f"{bag} is not a readable rosbag2 folder: {err}"
+        raise NotABagError(msg) from err
+    return reader
+
+
+def load_recording(bag: Path) -> Recording:
+    """Read the suite's topics of ``bag`` into a Recording (NotABagError if it cannot be read)."""
+    bag = Path(bag)
+    reader = open_bag(bag)
+    try:
+        return _read(reader, bag)
+    except (AnyReaderError, CdrError) as err:
+        msg = f"{bag}: cannot decode the recording: {err}"
+        raise NotABagError(msg) from err
+    finally:
+        reader.close()
+
+
+def _read(reader: AnyReader, bag: Path) -> Recording:
+    origin = int(reader.start_time) if reader.message_count else 0
+    rec = Recording(
+        bag,
+        origin,
+        reader.duration / 1e9 if reader.message_count else 0.0,
+        {c.topic: c.msgcount for c in reader.connections},
+    )
+    route: dict[int, tuple[str, Any]] = {}
+    joint_batches = {key: _Batches(decode_joint_states) for key in _JOINT_STREAMS}
+    float_batches = {
+        key: _Batches(lambda raws, n=n: decode_stamped_floats(raws, n)) for key, (_, n) in _FLOAT_STREAMS.items()
+    }
+    for key, (topic, _) in _JOINT_STREAMS.items():
+        route.update({c.id: ("joint", key) for c in find_connections(reader.connections, topic)})
+    for key, (topic, _) in _FLOAT_STREAMS.items():
+        route.update({c.id: ("float", key) for c in find_connections(reader.connections, topic)})
+    for key, topic in _OBJECT_TOPICS.items():
+        route.update({c.id: ("object", key) for c in find_connections(reader.connections, topic)})
+    estop_t: list[int] = []
+    estop_v: list[bool] = []
+    wanted = [c for c in reader.connections if c.id in route]
+    names: dict[str, str] = {}
+    for connection, log_ns, raw in reader.messages(connections=wanted):
+        kind, key = route[connection.id]
+        names.setdefault(key, connection.topic)
+        if kind == "joint":
+            joint_batches[key].add(raw, log_ns)
+        elif kind == "float":
+            float_batches[key].add(raw, log_ns)
+        else:
+            msg = deserialize(reader, raw, connection.msgtype)
+            t = (log_ns - origin) / 1e9
+            if key == "planned_joints":
+                rec.planned_joints.append(_planned_joints(msg, t))
+            elif key == "planned_base":
+                rec.planned_base.append(_planned_base(msg, t))
+            elif key == "diagnostics":
+                rec.diagnostics.extend(_diagnostics(msg, log_ns, origin))
+            else:
+                estop_t.append(log_ns)
+                estop_v.append(bool(msg.data))
+    for key, (_, contract) in _JOINT_STREAMS.items():
+        setattr(rec, key, _joint_series(names.get(key, key), joint_batches[key], contract, origin))
+    for key in _FLOAT_STREAMS:
+        data = _stamped(float_batches[key], origin)
+        if data is None:
+            continue
+        t, values, source = data
+        if key == "base_pose":
+            rec.base_pose = PoseSeries(names[key], t, values[:, :3], values[:, 3:], source)
+        else:
+            setattr(rec, key, WrenchSeries(names[key], t, values[:, :3], values[:, 3:], source))
+    if estop_t:
+        rec.estopped = BoolSeries(names["estopped"], _seconds(np.asarray(estop_t), origin), np.asarray(estop_v))
+    rec.diagnostics.sort(key=lambda d: d.t)
+    return rec

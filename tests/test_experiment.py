@@ -1,0 +1,85 @@
+"""The product's main job, shortened for CI: `rh5 experiment` plans a one-squat fast_squats, plays it on the
+PyBullet robot through the whole suite, records a bag and writes the report; `rh5 report` rewrites it."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+RH5 = str(Path(sys.prefix) / "bin" / "rh5")
+SHORT_SQUAT = ["--set", "n_squats=1", "--set", "total_time_s=2.3", "--hold", "0.5"]
+
+
+@pytest.fixture(scope="module")
+def experiment(tmp_path_factory: pytest.TempPathFactory) -> tuple[subprocess.CompletedProcess[str], Path]:
+    out = tmp_path_factory.mktemp("experiment")
+    result = subprocess.run(
+        [RH5, "experiment", "fast_squats", *SHORT_SQUAT, "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=420,
+        check=False,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    return result, out
+
+
+def _path_after(label: str, text: str) -> Path:
+    match = re.search(rf"^rh5 experiment: {label} (\S+)$", text, re.MULTILINE)
+    assert match, f"no '{label}' line in:\n{text}"
+    return Path(match.group(1))
+
+
+def test_experiment_runs_end_to_end_without_falling(experiment: tuple[subprocess.CompletedProcess[str], Path]) -> None:
+    result, _ = experiment
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    assert "fast_squats: completed" in result.stdout
+    assert "planned now" in result.stdout
+
+
+def test_bag_holds_the_suite_streams(experiment: tuple[subprocess.CompletedProcess[str], Path]) -> None:
+    from rosbags.highlevel import AnyReader
+
+    result, _ = experiment
+    bag = _path_after("bag", result.stdout)
+    with AnyReader([bag]) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        assert reader.duration > 2.3e9  # at least the motion itself
+    seconds = 2.3
+    for topic in ("joint_states", "joint_commands", "actuator_states", "actuator_commands"):
+        assert counts.get(topic, 0) > 0.5 * 1000 * seconds, (topic, counts)
+    assert counts.get("sim/base_pose", 0) > 50 * seconds, counts
+    assert counts.get("planned_trajectory") == 1, counts
+
+
+def test_report_is_written_and_rewritten(experiment: tuple[subprocess.CompletedProcess[str], Path]) -> None:
+    result, out = experiment
+    report = _path_after("report", result.stdout)
+    pngs = sorted(p.name for p in report.glob("*.png"))
+    markdown = list(report.glob("*.md"))
+    assert pngs, f"no plots in {report}"
+    assert markdown, f"no Markdown summary in {report}"
+    text = markdown[0].read_text(encoding="utf-8")
+    assert "LLAnkle" in text or "ankle" in text.lower()
+    again = subprocess.run(
+        [RH5, "report", str(_path_after("bag", result.stdout)), "--out", str(out / "again")],
+        capture_output=True,
+        text=True,
+        timeout=180,
+        check=False,
+    )
+    assert again.returncode == 0, again.stderr
+    assert sorted(p.name for p in (out / "again").glob("*.png")) == pngs
+
+
+def test_report_rejects_a_folder_that_is_not_a_bag(tmp_path: Path) -> None:
+    result = subprocess.run([RH5, "report", str(tmp_path)], capture_output=True, text=True, timeout=60, check=False)
+    assert result.returncode == 2
+    assert "report:" in result.stderr
