@@ -49,7 +49,7 @@ def suite(ros_graph: Any, ros_test_environment: dict[str, str]) -> Any:
     from rcl_interfaces.srv import DescribeParameters, ListParameters
     from std_msgs.msg import String
 
-    bringup = load_bringup()
+    bringup = load_bringup().with_parameters("recorder", output=str(_log_dir(ros_test_environment, "suite") / "bag"))
     descriptions: list[str] = []
     ros_graph.create_subscription(
         String, interfaces.ROBOT_DESCRIPTION.name, lambda m: descriptions.append(m.data), interfaces.LATCHED_QOS

@@ -1,0 +1,17 @@
+"""The recording's errors, by phase: writing a bag, recovering one."""
+
+from __future__ import annotations
+
+__all__ = ["BagRecoveryError", "BagWriterError", "RecordingError"]
+
+
+class RecordingError(RuntimeError):
+    """Base of the recording errors."""
+
+
+class BagWriterError(RecordingError):
+    """A bag cannot be created or written (exists already, wrong lifecycle step, unknown topic, I/O)."""
+
+
+class BagRecoveryError(RecordingError):
+    """A bag cannot be recovered (no MCAP header, not the ros2 profile, compressed chunks)."""
