@@ -74,7 +74,7 @@ class DriverNode(SuiteNode):
         self._publish_estop = self.advertise(interfaces.DRIVER_ESTOP)
         self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
         self._publish_estop(Bool(data=False))
-        self.subscribe(interfaces.ACTUATOR_COMMANDS, self._on_command)
+        self.subscribe_stream(interfaces.ACTUATOR_COMMANDS, self._on_command)
         self.create_service(SetBool, interfaces.ENABLE_SERVICE, self._on_enable)
         self.create_service(Trigger, interfaces.ESTOP_SERVICE, self._on_estop)
         self.create_service(Trigger, interfaces.RESET_ESTOP_SERVICE, self._on_reset_estop)

@@ -49,8 +49,8 @@ class MapperNode(SuiteNode):
         self._publish_actuator_commands = self.advertise(interfaces.ACTUATOR_COMMANDS)
         self._publish_joint_states = self.advertise(interfaces.JOINT_STATES)
         self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
-        self.subscribe(interfaces.JOINT_COMMANDS, self._on_joint_commands)
-        self.subscribe(interfaces.ACTUATOR_STATES, self._on_actuator_states)
+        self.subscribe_stream(interfaces.JOINT_COMMANDS, self._on_joint_commands)
+        self.subscribe_stream(interfaces.ACTUATOR_STATES, self._on_actuator_states)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
 
     def _reject(self, topic: str, reason: str) -> None:

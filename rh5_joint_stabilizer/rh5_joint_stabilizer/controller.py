@@ -148,9 +148,10 @@ class StabilizerCore:
                 return False, f"refused: already {self.state.value}"
             if measurement is None:
                 return False, "refused: no joint_states received"
-            speed = float(np.max(np.abs(measurement.velocity)))
+            fastest = int(np.argmax(np.abs(measurement.velocity)))
+            speed = float(abs(measurement.velocity[fastest]))
             if speed > self.safety.rest_velocity:
-                return False, f"refused: robot not at rest (joint speed {speed:.3f} rad/s)"
+                return False, f"refused: robot not at rest ({JOINT_NAMES[fastest]} at {speed:.3f} rad/s)"
             self._pending_start = True
         return True, "starting: ramp-in to the first trajectory sample"
 

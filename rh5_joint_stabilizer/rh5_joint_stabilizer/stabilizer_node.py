@@ -84,7 +84,7 @@ class StabilizerNode(SuiteNode):
         self._publish_commands = self.advertise(interfaces.JOINT_COMMANDS)
         self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
         self.subscribe(interfaces.PLANNED_TRAJECTORY, self._on_trajectory)
-        self.subscribe(interfaces.JOINT_STATES, self._on_joint_states)
+        self.subscribe_stream(interfaces.JOINT_STATES, self._on_joint_states)
         self.subscribe(interfaces.DRIVER_ESTOP, self._on_estop)
         if self.balance is not None:
             self.subscribe(interfaces.SIM_BASE_POSE, self._on_base_pose)

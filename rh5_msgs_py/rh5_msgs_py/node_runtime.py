@@ -23,6 +23,7 @@ from rclpy.subscription import Subscription
 from rh5_msgs_py.interfaces import Topic, message_class
 from rh5_msgs_py.parameters import declare_parameters, load_spec, parameter_values
 from rh5_msgs_py.ros_env import apply_safe_defaults
+from rh5_msgs_py.streams import StreamThread
 
 SUMMARY_PREFIX = "RH5_SUMMARY "
 EXIT_BAD_START = 2
@@ -37,6 +38,7 @@ class SuiteNode(Node):
         declare_parameters(self, self.param_specs)
         self.seen: Counter[str] = Counter()
         self.sent: Counter[str] = Counter()
+        self._streams: StreamThread | None = None
 
     @property
     def params(self) -> dict[str, Any]:
@@ -54,6 +56,26 @@ class SuiteNode(Node):
                 callback(msg)
 
         return self.create_subscription(message_class(topic.type), topic.name, on_message, topic.qos, raw=raw)
+
+    def subscribe_stream(self, topic: Topic, callback: Callable[[Any], None]) -> Subscription:
+        """Like ``subscribe`` for a 1 kHz stream: served by the node's `StreamThread`, not the executor, so
+        ``callback`` runs in that thread and must only touch thread-safe state."""
+        if self._streams is None:
+            self._streams = StreamThread(self, name=f"{self.get_name()}-streams")
+            self.context.on_shutdown(self._streams.stop)
+            self._streams.start()
+
+        def on_message(msg: Any) -> None:
+            self.seen[topic.name] += 1
+            callback(msg)
+
+        return self._streams.subscribe(topic, on_message)
+
+    def destroy_node(self) -> None:
+        """Stop the stream thread before the subscriptions go away."""
+        if self._streams is not None:
+            self._streams.stop()
+        super().destroy_node()
 
     def advertise(self, topic: Topic) -> Callable[[Any], None]:
         """Create a publisher with the topic's contract type and QoS; return a counting publish function."""
