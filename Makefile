@@ -1,5 +1,6 @@
 # Two commands do all set-up on a fresh machine:
-#   make run   - create .venv if missing, install the pinned set, run the main job on the simulated robot
+#   make run   - create .venv if missing, install the pinned set, run the main job: fast squats end to end on
+#                the simulated robot (plan, PyBullet physics, record, report)
 #   make test  - create .venv if missing, run the whole test suite (what CI runs through .ci/run)
 SHELL := /bin/bash
 PYTHON ?= $(shell command -v python3.11 || command -v python3)
@@ -12,7 +13,7 @@ PYTEST_ARGS ?=
 .PHONY: run test lint venv lock clean
 
 run: $(STAMP)
-	$(VENV)/bin/rh5 up --duration 15 --start
+	$(VENV)/bin/rh5 experiment fast_squats
 
 test: $(STAMP)
 	$(PY) -m pytest $(PYTEST_ARGS)

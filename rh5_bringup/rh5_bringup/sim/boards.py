@@ -10,6 +10,7 @@ silent boards, sensor noise.
 
 from __future__ import annotations
 
+import sys
 import threading
 import time
 from collections import Counter, deque
@@ -30,7 +31,7 @@ from rh5_bringup.ndlcom.payloads import (
 )
 from rh5_bringup.sim.actuators import ActuatorBank, ActuatorMeasurement, Mode, Status
 from rh5_bringup.transports.base import Transport
-from rh5_msgs_py.realtime import LoopStats, LoopTimer, set_timer_slack
+from rh5_msgs_py.realtime import GIL_SWITCH_INTERVAL_S, LoopStats, LoopTimer, set_timer_slack
 
 BOARD_COMMAND_TIMEOUT_NS = 20_000_000  # the boards' own watchdog
 BOARD_PERIOD_NS = 1_000_000  # the boards' position loop
@@ -242,7 +243,8 @@ class BoardsServer:
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
 
     def start(self) -> None:
-        """Start serving."""
+        """Start serving (and make the interpreter hand the GIL over often enough for 1 kHz, as DeadlineLoop does)."""
+        sys.setswitchinterval(min(sys.getswitchinterval(), GIL_SWITCH_INTERVAL_S))
         self._thread.start()
 
     def stop(self, timeout_s: float = 2.0) -> None:
