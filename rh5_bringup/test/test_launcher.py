@@ -67,3 +67,21 @@ def test_node_command_carries_remappings_before_parameters() -> None:
 def test_cli_sim_choice_sets_the_sim_hardware_mode() -> None:
     modes = {n.name: n.parameters.get("mode") for n in load_bringup().resolved(sim="physics").nodes}
     assert modes["sim_hardware"] == "physics"
+
+
+@pytest.mark.parametrize(
+    ("argv", "reason"),
+    [
+        (["experiment", "moonwalk"], "unknown motion 'moonwalk'"),
+        (["experiment", "fast_squats", "--set", "n_squats"], "expected key=value"),
+        (["experiment", "fast_squats", "--set", "depth=3"], "unknown parameters ['depth']"),
+        (["experiment", "fast_squats", "--param", "nobody.x=1"], "no nodes ['nobody']"),
+        (["experiment", "fast_squats", "--param", "driver=1"], "expected NODE.KEY=VALUE"),
+    ],
+)
+def test_experiment_rejects_bad_input_before_starting_anything(
+    argv: list[str], reason: str, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    assert main([*argv, "--out", str(tmp_path)]) == 2
+    assert reason in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())  # nothing planned, nothing started
