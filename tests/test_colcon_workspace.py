@@ -23,7 +23,7 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("rh5_msgs_py", "rh5_hyrodyn_mapper", "rh5_planner", "rh5_joint_stabilizer", "rh5_bringup")
 NODE_EXECUTABLES = {
     "rh5_hyrodyn_mapper": ("mapper_node", "rh5_urdf"),
-    "rh5_planner": ("planner_node",),
+    "rh5_planner": ("planner_node", "rh5-plan"),
     "rh5_joint_stabilizer": ("stabilizer_node",),
     "rh5_bringup": ("driver_node", "sim_hardware_node", "recorder_node", "rh5"),
 }

@@ -104,6 +104,8 @@ class SimHardwareNode(SuiteNode):
         }
         self._publish_clock = self.advertise(interfaces.CLOCK) if params["publish_clock"] else None
         self.create_service(Trigger, interfaces.RELEASE_SUPPORT_SERVICE, self._release_support)
+        physics.ground_truth_every = max(1, round(1000.0 / params["ground_truth_rate_hz"]))
+        physics.snapshot()
         self.create_timer(1.0 / params["ground_truth_rate_hz"], self._publish_ground_truth)
         self.get_logger().info(
             f"physics: {physics.world.total_mass:.2f} kg, friction {params['friction_coefficient']}, "
@@ -126,11 +128,10 @@ class SimHardwareNode(SuiteNode):
         assert self.physics is not None
         from geometry_msgs.msg import PoseStamped, WrenchStamped  # noqa: PLC0415 - physics mode only
 
-        world = self.physics.world
-        with self.physics.lock:
-            pose = world.base_pose()
-            wrenches = world.foot_wrenches()
-            sim_ns = world.steps * round(world.time_step * 1e9)
+        truth, _, _ = self.physics.ground_truth.try_get()  # taken by the boards thread: no lock, no PyBullet here
+        if truth is None:
+            return
+        pose, wrenches, sim_ns = truth.base, truth.wrenches, truth.sim_ns
         stamp = self.get_clock().now().to_msg()
         msg = PoseStamped()
         msg.header.stamp, msg.header.frame_id = stamp, "world"

@@ -65,6 +65,7 @@ from rh5_bringup.sim.actuators import ActuatorBank, ActuatorMeasurement, Actuato
 from rh5_hyrodyn_mapper.mapping import KinematicsError, RobotMapper, robot_mapper
 from rh5_hyrodyn_mapper.model.urdf import generate_urdf, load_parameters
 from rh5_msgs_py.names import BASE_FRAME, FOOT_FRAMES, HAND_FRAMES, JOINT_NAMES, NUM_JOINTS
+from rh5_msgs_py.realtime import LatestValue
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -106,6 +107,14 @@ class FootWrench(NamedTuple):
         """Force and moment in sole axes (about the sole origin)."""
         rt = self.sole_rotation.T
         return rt @ self.force_world, rt @ self.moment_world
+
+
+class GroundTruth(NamedTuple):
+    """What the simulation knows and a robot would not: simulated time, true base pose, foot wrenches."""
+
+    sim_ns: int
+    base: Pose
+    wrenches: dict[str, FootWrench]
 
 
 @dataclass(frozen=True)
@@ -579,6 +588,10 @@ class PhysicsActuatorBank:
         self.mapper = robot_mapper() if mapper is None else mapper
         self.counts = CouplingCounts()
         self.lock = threading.Lock()
+        self.ground_truth_every = 0
+        """Take a `GroundTruth` snapshot every this many physics steps (0: never), in the stepping thread, so
+        readers in other threads need neither the lock nor PyBullet."""
+        self.ground_truth: LatestValue[GroundTruth] = LatestValue()
         self._debt = 0.0
         self._tau = np.zeros(NUM_JOINTS)
         self._read()
@@ -601,6 +614,13 @@ class PhysicsActuatorBank:
         self._read()
         self._debt = 0.0
         return self.bank.reset(self.position)
+
+    def snapshot(self) -> GroundTruth:
+        """Record (and return) the ground truth now; the caller holds the lock or is the stepping thread."""
+        world = self.world
+        truth = GroundTruth(world.steps * round(world.time_step * 1e9), world.base_pose(), world.foot_wrenches())
+        self.ground_truth.set(truth)
+        return truth
 
     def torques(self, force: FloatArray) -> FloatArray:
         """tau = J(q)^T f at the current physics pose [Nm]."""
@@ -646,6 +666,9 @@ class PhysicsActuatorBank:
             self.counts.dropped_steps += steps - taken
             self._debt -= steps * self.world.time_step
             self._read()
+            every = self.ground_truth_every
+            if every and self.world.steps % every < taken:
+                self.snapshot()
         return measured._replace(position=self.position.copy(), velocity=self.velocity.copy())
 
 
@@ -677,6 +700,7 @@ __all__ = [
     "TIME_STEP",
     "CouplingCounts",
     "FootWrench",
+    "GroundTruth",
     "JointDynamics",
     "PhysicsActuatorBank",
     "PhysicsWorld",
