@@ -113,6 +113,7 @@ class BoardEmulator:
         self.board_time_us = 0
         self.max_catch_up_ns = MAX_CATCH_UP_NS  # physics mode: a few ms (its steps cost a third of a cycle each)
         self._last_ns: int | None = None
+        self._debt_ns = 0  # time passed that the boards have not stepped yet (less than one cycle)
 
     def set_faults(self, faults: Faults) -> None:
         """Change the injected faults from the next cycle on (the random stream continues)."""
@@ -155,19 +156,24 @@ class BoardEmulator:
         timed_out = (self.mode != int(CommandMode.OFF)) & (now_ns - self.command_ns > BOARD_COMMAND_TIMEOUT_NS)
         mode = np.where(timed_out, int(Mode.HOLD), self.mode)
         setpoint = np.where(mode >= int(Mode.POSITION), self.setpoint, 0.0)
-        # Real time passes for the actuators even when this loop is late: step the time elapsed since the last
-        # cycle (at most MAX_CATCH_UP_NS), in steps no longer than the boards' own 1 ms period.
-        gap = period_ns if self._last_ns is None else max(now_ns - self._last_ns, 1_000)
-        elapsed = min(gap, self.max_catch_up_ns)
-        if gap > elapsed:
-            self.counts["time_not_replayed_us"] += (gap - elapsed) // 1000
+        # Real time passes for the actuators even when this loop is late: the boards run their own 1 ms cycles,
+        # so step as many whole cycles as have passed (a stall longer than max_catch_up_ns is not replayed). A fixed
+        # cycle also keeps the bank's discretised loop coefficients cached (a varying dt recomputed them each time).
+        gap = period_ns if self._last_ns is None else max(now_ns - self._last_ns, 0)
         self._last_ns = now_ns
-        steps = max(1, -(-elapsed // BOARD_PERIOD_NS))
+        self._debt_ns += gap
+        if self._debt_ns > self.max_catch_up_ns:
+            self.counts["time_not_replayed_us"] += (self._debt_ns - self.max_catch_up_ns) // 1000
+            self._debt_ns = self.max_catch_up_ns
+        steps, self._debt_ns = divmod(self._debt_ns, BOARD_PERIOD_NS)
+        measured = None
         for _ in range(steps):
             measured = self.bank.step(
-                elapsed / steps / 1e9, mode, setpoint, self.velocity_ff, self.effort_ff, external_force
+                BOARD_PERIOD_NS / 1e9, mode, setpoint, self.velocity_ff, self.effort_ff, external_force
             )
-        self.board_time_us += elapsed // 1000
+        if measured is None:  # a burst within the boards' current cycle: they answer with their latest readings
+            measured = self.bank.measure()
+        self.board_time_us += steps * BOARD_PERIOD_NS // 1000
         self._send(now_ns, mode, timed_out, measured)
         return measured
 

@@ -615,6 +615,11 @@ class PhysicsActuatorBank:
         self._debt = 0.0
         return self.bank.reset(self.position)
 
+    def measure(self) -> ActuatorMeasurement:
+        """The last readings again without stepping (the bank's, with the physics' positions and velocities)."""
+        with self.lock:
+            return self.bank.measure()._replace(position=self.position.copy(), velocity=self.velocity.copy())
+
     def snapshot(self) -> GroundTruth:
         """Record (and return) the ground truth now; the caller holds the lock or is the stepping thread."""
         world = self.world
