@@ -37,6 +37,7 @@ setup(
     entry_points={
         "console_scripts": [
             "planner_node = rh5_planner.planner_node:main",
+            "rh5-plan = rh5_planner.plan_cli:entry_point",
         ],
     },
 )

@@ -14,14 +14,18 @@ Conventions: world frame z up, x forward; feet are ``"left"``/``"right"`` (names
 targets are translations of the sole frame, whose orientation stays that of the initial stance (flat, no
 turning); times in s, lengths in m.
 
-Status (see ``VERIFIED_MOTIONS``; Box-FDDP, th_stop 1e-7, measured on the 2-vCPU dev VM): the paper's
-walk_with_5kg_weights converges in ~115 iterations (~3.5 s), squat_with_5kg_weights in ~11 (~0.5 s),
-fast_squats in ~10 (~1.5 s); all three are tested for convergence, contact stability (CoP in the 50 %
-rectangle, friction, f_z > 0), joint/torque limits and foot drift. The walk's CoP needs whole-body angular
-momentum: a linear inverted pendulum at RH5's CoM height (1.03 m) cannot go 0.5 m from rest to rest in 1.5 s
-with the CoP within +-45 mm of the soles (an LP over the ZMP is >= 3 cm short), so its solution sits on the
-CoP bound and the torque box for much of the motion. fast_walk_1m_s, the jumps, one_leg_balancing and
-static_stepping build their contact sequences but have not been solved or checked.
+Status (see ``VERIFIED_MOTIONS``; Box-FDDP with the costs.yaml continuation, measured on the 2-vCPU dev VM):
+walk_with_5kg_weights converges in ~47 iterations (~1.4 s), squat_with_5kg_weights ~11, fast_squats ~10,
+vertical_jump_1cm ~110 (feasible: every limit holds with the motion_overrides joint-limit weight),
+one_leg_balancing ~31 and static_stepping ~27; all six are tested for convergence, contact stability (CoP in the
+50 % rectangle, friction, f_z > 0), joint/torque limits and foot drift. Design-analysis motions: vertical_jump_10cm
+converges (~156 iterations, soles 9.8 cm up) with the knees at ~2.6x, hips (Hip3) ~1.4x and BodyPitch ~1.02x
+their velocity limits, positions and torques inside (the paper: velocity infeasible, body pitch and knee).
+fast_walk_1m_s converges with the paper's cost set, which has no contact-wrench cone: its contacts pull on the
+ground (f_z < 0) and the swing soles stay low, so it is not physically consistent; with the cone switched on it
+does not converge in 300 iterations. obstacle_jumps: see bench/planner.py. The walk's CoP needs whole-body
+angular momentum: a linear inverted pendulum at RH5's CoM height (1.03 m) cannot go 0.5 m from rest to rest in
+1.5 s with the CoP within +-45 mm of the soles, so its solution sits on the CoP bound for much of the motion.
 
 Knot timing: a knot's targets apply to the state at the START of its interval (its running cost is
 evaluated on x_i), so swing knot k of n targets the sole at phase k / n (the first swing node still on the
@@ -85,7 +89,8 @@ class KnotSpec:
     ``contacts`` (left, right) are the feet held by rigid 6D contacts during the node (after the impact for an
     impulse node). ``feet`` maps every side to its sole target position; ``com`` is the CoM target or None
     when the motion does not track the CoM. ``impulse`` marks a touch-down node of zero duration in which
-    the feet of ``touchdown`` hit the ground.
+    the feet of ``touchdown`` hit the ground. ``com_guess`` is a CoM position for the warm start only (never a
+    cost): the jumps' crouch, push-off and ballistic flight.
     """
 
     phase: str
@@ -94,6 +99,7 @@ class KnotSpec:
     com: FloatArray | None = None
     impulse: bool = False
     touchdown: tuple[str, ...] = ()
+    com_guess: FloatArray | None = None
 
     def in_contact(self, side: str) -> bool:
         """Whether ``side`` is in contact at this node."""
@@ -139,6 +145,9 @@ class MotionSpec:
     costs: tuple[str, ...] | None = None
 
     kind: ClassVar[str] = "abstract"
+    kinematic_guess: ClassVar[bool] = False
+    """Whether the warm start is a whole-body IK guess along the knots' targets (problem._state_guess) rather than
+    the initial state at every knot."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
@@ -217,9 +226,20 @@ def _stance(reference: Reference) -> dict[str, FloatArray]:
 
 
 def _swing(start: FloatArray, end: FloatArray, height: float, s: float) -> FloatArray:
-    """Sole position along a swing: straight in x/y, parabolic apex ``height`` above the higher end."""
+    """Sole position along a ballistic arc (jump flight): linear in x/y, parabolic apex ``height`` above the
+    straight line, as a free-falling body moves."""
     p = (1.0 - s) * start + s * end
-    p[2] = (1.0 - s) * start[2] + s * end[2] + 4.0 * height * s * (1.0 - s)
+    p[2] += 4.0 * height * s * (1.0 - s)
+    return p
+
+
+def _step(start: FloatArray, end: FloatArray, height: float, s: float) -> FloatArray:
+    """Sole position along a walking step: a smoothstep in x/y and a bump 16 h s^2 (1 - s)^2 of apex ``height``
+    in z, so the sole leaves and reaches the ground with zero velocity (no velocity jump at lift-off for the
+    swing leg to follow, a soft touch-down impulse)."""
+    smooth = s * s * (3.0 - 2.0 * s)
+    p = (1.0 - smooth) * start + smooth * end
+    p[2] += 16.0 * height * s * s * (1.0 - s) * (1.0 - s)
     return p
 
 
@@ -246,6 +266,7 @@ class WalkMotion(MotionSpec):
     track_com: bool = False
 
     kind: ClassVar[str] = "walk"
+    kinematic_guess: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -314,7 +335,7 @@ class WalkMotion(MotionSpec):
             contacts = (side != "left", side != "right")
             for k in range(self.swing_knots):
                 targets = {k2: v.copy() for k2, v in feet.items()}
-                targets[side] = _swing(start, end, self.step_height_m, k / self.swing_knots)
+                targets[side] = _step(start, end, self.step_height_m, k / self.swing_knots)
                 specs.append(KnotSpec(f"step_{i}_{side}", contacts, targets, com_at(_running())))
             feet[side] = end
             specs.append(
@@ -388,21 +409,29 @@ class JumpMotion(MotionSpec):
     """``n_jumps`` two-footed jumps of apex ``height_m`` (sole clearance), each ``length_m`` / n forward.
 
     Each jump: ground phase (push-off), flight of the ballistic duration 2 sqrt(2 h / g) for the apex height,
-    touch-down impulse; the ground phases share the remaining time. Sole targets follow a parabola during
-    flight. Status: builds and solves; limits not verified against the paper (priority c).
+    touch-down impulse of both soles; the ground phases share the remaining time. Sole targets follow a parabola
+    of apex ``height_m`` during flight (flight knot k of n at phase k / n, as the walk's swings). No CoM cost (the
+    paper's table): the CoM only shapes the warm start (``KnotSpec.com_guess``): hold, a smoothstep crouch, a
+    push-off of constant acceleration (at least g, crouch at most ``max_crouch_m``) up to the take-off velocity,
+    the ballistic parabola, and a smoothstep recovery of ``recovery_s`` after each landing.
     """
 
     height_m: float = 0.1
     length_m: float = 0.0
     n_jumps: int = 1
+    max_crouch_m: float = 0.1
+    recovery_s: float = 0.15
 
     kind: ClassVar[str] = "jump"
+    kinematic_guess: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         super().__post_init__()
         _check_positive("height_m", self.height_m)
         _check_nonnegative("length_m", self.length_m)
         _count("n_jumps", self.n_jumps)
+        _check_positive("max_crouch_m", self.max_crouch_m)
+        _check_nonnegative("recovery_s", self.recovery_s)
         ground = self.n_knots - self.n_jumps * self.flight_knots
         if ground < 3 * (self.n_jumps + 1):
             msg = f"{self.name}: total_time_s = {self.total_time_s} s is too short for {self.n_jumps} jumps"
@@ -413,28 +442,73 @@ class JumpMotion(MotionSpec):
         """Knots of each flight phase."""
         return max(2, _knots(2.0 * math.sqrt(2.0 * self.height_m / GRAVITY), self.dt))
 
+    @property
+    def takeoff_velocity(self) -> FloatArray:
+        """CoM velocity (x, z) at take-off of the ballistic flight of ``flight_knots``."""
+        flight = self.flight_knots * self.dt
+        return np.array([self.length_m / self.n_jumps / flight, 0.5 * GRAVITY * flight])
+
     def initial_base_shift(self) -> FloatArray:
         """The base ends ``length_m`` ahead."""
         return np.array([self.length_m, 0.0, 0.0])
 
+    def _push_knots(self) -> int:
+        vz = float(self.takeoff_velocity[1])
+        accel = max(GRAVITY, vz * vz / (2.0 * self.max_crouch_m))
+        return max(1, round(vz / accel / self.dt))
+
+    def _ground_guess(self, count: int, stand: FloatArray, landing: FloatArray | None, jump: bool) -> list[FloatArray]:
+        """CoM guesses of a ground phase: recovery from ``landing``, hold, crouch and push-off (when ``jump``)."""
+        recover = min(count // 3, _knots(self.recovery_s, self.dt)) if landing is not None else 0
+        push = min(self._push_knots(), count // 3) if jump else 0
+        crouch = min(_knots(0.2, self.dt), count - recover - push) if jump else 0
+        hold = count - recover - push - crouch
+        out: list[FloatArray] = []
+        for k in range(recover):
+            s = (k + 1) / recover
+            out.append(landing + (s * s * (3.0 - 2.0 * s)) * (stand - landing))  # type: ignore[operator]
+        out.extend(stand.copy() for _ in range(hold))
+        if jump:
+            t_push = push * self.dt
+            vx, vz = self.takeoff_velocity
+            low = stand + np.array([-0.5 * vx * t_push, 0.0, -0.5 * vz * t_push])
+            for k in range(crouch):
+                s = (k + 1) / crouch
+                out.append(stand + (s * s * (3.0 - 2.0 * s)) * (low - stand))
+            for k in range(push):
+                t = k * self.dt
+                out.append(low + np.array([vx, 0.0, vz]) * (0.5 * t * t / t_push))
+        return out
+
     def knots(self, reference: Reference) -> list[KnotSpec]:
         """Ground, flight, touch-down impulse, repeated; ground phases split the rest evenly."""
         feet = _stance(reference)
+        com0 = np.array(reference.com, dtype=float)
         ground_total = self.n_knots - self.n_jumps * self.flight_knots
         grounds = [ground_total // (self.n_jumps + 1)] * (self.n_jumps + 1)
         grounds[-1] += ground_total - sum(grounds)
+        step = np.array([self.length_m / self.n_jumps, 0.0, 0.0])
+        vx, vz = self.takeoff_velocity
         specs: list[KnotSpec] = []
-        for j in range(self.n_jumps):
+        landing: FloatArray | None = None
+        for j in range(self.n_jumps + 1):
+            stand = com0 + j * step
+            guesses = self._ground_guess(grounds[j], stand, landing, jump=j < self.n_jumps)
+            phase = f"ground_{j}" if j < self.n_jumps else "landing"
             specs.extend(
-                KnotSpec(f"ground_{j}", (True, True), {k: v.copy() for k, v in feet.items()}) for _ in range(grounds[j])
+                KnotSpec(phase, (True, True), {k: v.copy() for k, v in feet.items()}, com_guess=c) for c in guesses
             )
+            if j == self.n_jumps:
+                break
             start = {k: v.copy() for k, v in feet.items()}
-            end = {k: v + np.array([self.length_m / self.n_jumps, 0.0, 0.0]) for k, v in feet.items()}
+            end = {k: v + step for k, v in feet.items()}
             for k in range(self.flight_knots):
-                s = (k + 1) / self.flight_knots
-                targets = {side: _swing(start[side], end[side], self.height_m, s) for side in SIDES}
-                specs.append(KnotSpec(f"flight_{j + 1}", (False, False), targets))
+                t = k * self.dt
+                targets = {side: _swing(start[side], end[side], self.height_m, k / self.flight_knots) for side in SIDES}
+                com = stand + np.array([vx * t, 0.0, vz * t - 0.5 * GRAVITY * t * t])
+                specs.append(KnotSpec(f"flight_{j + 1}", (False, False), targets, com_guess=com))
             feet = end
+            landing = stand + np.array([vx * self.flight_knots * self.dt, 0.0, 0.0])
             specs.append(
                 KnotSpec(
                     f"touchdown_{j + 1}",
@@ -442,11 +516,9 @@ class JumpMotion(MotionSpec):
                     {k: v.copy() for k, v in feet.items()},
                     impulse=True,
                     touchdown=SIDES,
+                    com_guess=landing.copy(),
                 )
             )
-        specs.extend(
-            KnotSpec("landing", (True, True), {k: v.copy() for k, v in feet.items()}) for _ in range(grounds[-1])
-        )
         return specs
 
 
@@ -465,6 +537,7 @@ class BalanceMotion(MotionSpec):
     step_length_m: float = 0.0
 
     kind: ClassVar[str] = "balance"
+    kinematic_guess: ClassVar[bool] = True
     PHASE_NAMES: ClassVar[tuple[str, ...]] = ("hold", "shift_left", "lift", "lower", "center")
 
     def __post_init__(self) -> None:
@@ -586,7 +659,16 @@ MOTIONS: Final[dict[str, MotionSpec]] = {
 }
 """The nine motions with the paper's parameters, by name."""
 
-VERIFIED_MOTIONS: Final = frozenset({"squat_with_5kg_weights", "fast_squats", "walk_with_5kg_weights"})
+VERIFIED_MOTIONS: Final = frozenset(
+    {
+        "squat_with_5kg_weights",
+        "fast_squats",
+        "walk_with_5kg_weights",
+        "vertical_jump_1cm",
+        "one_leg_balancing",
+        "static_stepping",
+    }
+)
 """Motions that converge and whose solutions the tests check; the others are unfinished (module docstring)."""
 
 

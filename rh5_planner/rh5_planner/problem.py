@@ -30,6 +30,14 @@ Our own builders on Crocoddyl's public API (crocoddyl.utils.biped is not API and
 * Terminal cost: posture (terminal weight) and, for motions without a CoM target, the CoM xy over the
   middle of the final soles (``com.terminal_weight``).
 
+* Continuation (costs.yaml ``continuation``): the problem is first solved with the contact wrench cone off, then
+  at 10 % weight, each stage warm-starting the next; then with every weight as configured (same optimum, about
+  half the iterations for the walk). Convergence: Box-FDDP's gradient test (``stop_threshold``) or the cost
+  unchanged to ``cost_tolerance`` over ``stall_iterations`` full steps on a feasible trajectory.
+* Scaled limits (design-improvement heuristic): ``limit_scale`` of :func:`solve` / :func:`build_problem` /
+  :func:`build_robot` (``{"knee:velocity": 3.0}`` or any object with ``factors(kind)``) widens the position
+  ranges about their middle and multiplies velocity and torque maxima for the barrier and the torque box.
+
 ``solve(motion, settings)`` builds, solves and returns a :class:`PlanResult` with states, torques, contact
 wrenches and CoPs per foot per knot, the contact phases and the solver log; ``PlanResult.to_trajectory_data``
 converts to the project's trajectory file (rh5_msgs_py.trajectory_file), reordering pinocchio's joints to
@@ -38,13 +46,15 @@ JOINT_NAMES with q_index/v_index.
 
 from __future__ import annotations
 
+import copy
+import fnmatch
 import functools
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Final
+from typing import Any, Final, Protocol
 
 import crocoddyl  # must come before anything that links pinocchio extensions (design/crocoddyl_wheels.md)
 import numpy as np
@@ -61,13 +71,17 @@ from .motions import SIDES, KnotSpec, MotionSpec, Reference
 __all__ = [
     "COSTS_FILE",
     "FOOT_SIZE_M",
+    "LIMIT_KINDS",
     "BuiltProblem",
+    "LimitFactors",
+    "LimitScaleLike",
     "PlanResult",
     "ProgressCallback",
     "RobotSetup",
     "SolverSettings",
     "build_problem",
     "build_robot",
+    "limit_factors",
     "load_cost_config",
     "nominal_configuration",
     "solve",
@@ -89,9 +103,15 @@ def _cost_config_cached(path: str) -> dict[str, Any]:
 
 def load_cost_config(path: str | Path | None = None) -> dict[str, Any]:
     """The cost configuration (config/costs.yaml by default), as a fresh dict."""
-    import copy  # noqa: PLC0415
-
     return copy.deepcopy(_cost_config_cached(str(path or COSTS_FILE)))
+
+
+def motion_config(name: str, config: Mapping[str, Any]) -> dict[str, Any]:
+    """``config`` with its ``motion_overrides[name]`` section merged in (per-term settings of one motion)."""
+    merged = copy.deepcopy(dict(config))
+    for term, settings in (config.get("motion_overrides") or {}).get(name, {}).items():
+        merged[term] = {**merged.get(term, {}), **settings} if isinstance(settings, Mapping) else settings
+    return merged
 
 
 # --------------------------------------------------------------------------------------------------
@@ -222,8 +242,65 @@ def _q_of_v(model: pin.Model, idx_v: int) -> int:
     raise KeyError(idx_v)
 
 
-def build_robot(payload_kg_per_hand: float = 0.0, knee_bend_rad: float = 0.5) -> RobotSetup:
-    """RH5 with the payload at the hands, its Crocoddyl state and actuation, and the nominal standing state."""
+class LimitFactors(Protocol):
+    """Anything that gives a per-joint factor (JOINT_NAMES order) for a limit kind, such as
+    rh5_planner.limit_analysis.LimitScale."""
+
+    def factors(self, kind: str) -> npt.ArrayLike:
+        """(32,) factors in JOINT_NAMES order for ``kind`` ('position', 'velocity' or 'torque')."""
+        ...
+
+
+LimitScaleLike = LimitFactors | Mapping[str, float]
+"""Scaled joint limits for planning: a :class:`LimitFactors` or a mapping ``"PATTERN:KIND" -> factor`` with KIND one
+of :data:`LIMIT_KINDS` and PATTERN a case-insensitive shell pattern (``LL*``) or substring (``knee``) of joint names
+(``"*:velocity"`` scales every joint); later entries win where patterns overlap."""
+LIMIT_KINDS: Final = ("position", "velocity", "torque")
+
+
+def limit_factors(scale: LimitScaleLike | None) -> dict[str, FloatArray]:
+    """Per limit kind, the (32,) factors in JOINT_NAMES order of ``scale`` (ones where it says nothing).
+
+    ValueError for an unknown kind, a pattern matching no joint or a non-positive factor."""
+    out = {kind: np.ones(len(JOINT_NAMES)) for kind in LIMIT_KINDS}
+    if scale is None:
+        return out
+    if not isinstance(scale, Mapping):
+        for kind in LIMIT_KINDS:
+            out[kind] = np.asarray(scale.factors(kind), dtype=float).reshape(len(JOINT_NAMES))
+    else:
+        for key, factor in scale.items():
+            pattern, _, kind = str(key).rpartition(":")
+            if kind not in LIMIT_KINDS or not pattern:
+                msg = f"limit scale key {key!r} must be PATTERN:KIND with KIND one of {list(LIMIT_KINDS)}"
+                raise ValueError(msg)
+            mask = _match_joints(pattern)
+            if not mask.any():
+                msg = f"limit scale pattern {pattern!r} matches no joint"
+                raise ValueError(msg)
+            out[kind][mask] = float(factor)
+    for kind, values in out.items():
+        if not (np.isfinite(values).all() and (values > 0).all()):
+            msg = f"{kind} limit factors must be positive and finite, got {values}"
+            raise ValueError(msg)
+    return out
+
+
+def _match_joints(pattern: str) -> npt.NDArray[np.bool_]:
+    """JOINT_NAMES matching a shell pattern (with wildcards) or containing ``pattern`` (without), case-insensitive."""
+    pat = pattern.lower()
+    if any(ch in pat for ch in "*?["):
+        return np.array([fnmatch.fnmatchcase(name.lower(), pat) for name in JOINT_NAMES])
+    return np.array([pat in name.lower() for name in JOINT_NAMES])
+
+
+def build_robot(
+    payload_kg_per_hand: float = 0.0, knee_bend_rad: float = 0.5, limit_scale: LimitScaleLike | None = None
+) -> RobotSetup:
+    """RH5 with the payload at the hands, its Crocoddyl state and actuation, and the nominal standing state.
+
+    ``limit_scale`` (see :data:`LimitScaleLike`) scales the planning limits: position ranges widen about their
+    middle, velocity and torque maxima multiply (the design-improvement heuristic plans with these)."""
     model = build_model(free_flyer=True)
     if payload_kg_per_hand > 0:
         _add_payload(model, payload_kg_per_hand)
@@ -233,16 +310,19 @@ def build_robot(payload_kg_per_hand: float = 0.0, knee_bend_rad: float = 0.5) ->
     x0 = np.concatenate([q0, np.zeros(model.nv)])
     limits = joint_limits()
     order = np.argsort(v_index(model))  # pinocchio v order -> position in JOINT_NAMES
+    factors = {kind: f[order] for kind, f in limit_factors(limit_scale).items()}
+    lower, upper = np.asarray(limits.position_lower)[order], np.asarray(limits.position_upper)[order]
+    middle, half = 0.5 * (lower + upper), 0.5 * (upper - lower) * factors["position"]
     return RobotSetup(
         model=model,
         state=state,
         actuation=actuation,
         foot_ids={side: model.getFrameId(FOOT_FRAMES[side]) for side in SIDES},
         x0=x0,
-        q_lower=np.asarray(limits.position_lower)[order],
-        q_upper=np.asarray(limits.position_upper)[order],
-        v_max=np.asarray(limits.velocity_max)[order],
-        tau_max=np.asarray(limits.torque_max)[order],
+        q_lower=middle - half,
+        q_upper=middle + half,
+        v_max=np.asarray(limits.velocity_max)[order] * factors["velocity"],
+        tau_max=np.asarray(limits.torque_max)[order] * factors["torque"],
         payload_kg_per_hand=payload_kg_per_hand,
     )
 
@@ -505,16 +585,25 @@ def _state_guess(
         spec = specs[min(i, n - 1)]
         if i == n or not spec.impulse:
             running += 1
-        com = np.asarray(spec.com) if spec.com is not None else np.array([*com_xy[max(running, 0)], reference.com[2]])
+        if spec.com_guess is not None:
+            com = np.asarray(spec.com_guess)
+        elif spec.com is not None:
+            com = np.asarray(spec.com)
+        else:
+            com = np.array([*com_xy[max(running, 0)], reference.com[2]])
         soles = {side: pin.SE3(rotations[side], np.asarray(spec.feet[side])) for side in SIDES}
         q = robot.x0[:nq].copy() if i == 0 else solve_ik(model, q, soles, com=com, q_ref=robot.x0[:nq], iterations=8)
         qs.append(q)
     # Backward differences, as the symplectic Euler step makes them (q_{i+1} = q_i + v_{i+1} dt): a sole that
-    # leaves the ground at node i has zero velocity there. Right after an impulse node the velocity is zero.
+    # leaves the ground at node i has zero velocity there. An impulse node takes no time: the node after it has
+    # its configuration (the post-impact velocity is set by build_problem from the impulse model).
     xs = [robot.x0.copy()]
     for i in range(1, n + 1):
-        after_impulse = specs[i - 1].impulse
-        v = np.zeros(model.nv) if after_impulse else pin.difference(model, qs[i - 1], qs[i]) / motion.dt
+        if specs[i - 1].impulse:
+            qs[i] = qs[i - 1]
+            xs.append(np.concatenate([qs[i], xs[-1][nq:]]))
+            continue
+        v = pin.difference(model, qs[i - 1], qs[i]) / motion.dt
         xs.append(np.concatenate([qs[i], v]))
     return xs
 
@@ -533,20 +622,31 @@ class BuiltProblem:
 
 
 def build_problem(
-    motion: MotionSpec, config: Mapping[str, Any] | None = None, *, interpolate_guess: bool = True
+    motion: MotionSpec,
+    config: Mapping[str, Any] | None = None,
+    *,
+    interpolate_guess: bool = True,
+    limit_scale: LimitScaleLike | None = None,
 ) -> BuiltProblem:
-    """Robot, contact sequence, one action model per knot (impulse nodes at touch-down), warm start."""
-    config = load_cost_config() if config is None else config
-    robot = build_robot(motion.payload_kg_per_hand, motion.knee_bend_rad)
+    """Robot, contact sequence, one action model per knot (impulse nodes at touch-down), warm start.
+
+    ``config`` defaults to costs.yaml (its ``motion_overrides[motion.name]`` merged in); ``limit_scale`` plans with
+    scaled joint limits (:func:`build_robot`): the joint-limit barrier and the Box-FDDP torque box follow them."""
+    config = motion_config(motion.name, load_cost_config() if config is None else config)
+    robot = build_robot(motion.payload_kg_per_hand, motion.knee_bend_rad, limit_scale)
     specs = motion.knots(robot.reference())
     ct = _make_terms(robot, motion, config)
     running = [_impulse_model(ct, s) if s.impulse else _contact_model(ct, s, dt=motion.dt) for s in specs]
     terminal = _contact_model(ct, specs[-1], dt=motion.dt, terminal=True)
     problem = crocoddyl.ShootingProblem(robot.x0.copy(), running, terminal)
-    # Kinematic IK guess only for motions that move the base; in-place motions start from x0 at every knot.
-    moves = bool(np.any(motion.initial_base_shift() != 0.0))
-    if interpolate_guess and moves:
+    # Kinematic IK guess for motions that move the base or lift a foot; squats start from x0 at every knot.
+    if interpolate_guess and motion.kinematic_guess:
         xs = _state_guess(motion, robot, specs, ct.foot_rotations)
+        for i, spec in enumerate(specs):  # post-impact states: what the impulse model makes of the pre-impact ones
+            if spec.impulse:
+                data = running[i].createData()
+                running[i].calc(data, xs[i])
+                xs[i + 1] = np.array(data.xnext)
     else:
         xs = [robot.x0.copy() for _ in range(len(specs) + 1)]
     us = list(problem.quasiStatic(xs[:-1]))
@@ -568,17 +668,66 @@ class SolverSettings:
     verbose: bool = False
     cost_config: Mapping[str, Any] | None = None
     interpolate_guess: bool = True
+    continuation: bool = True
+    """Solve the stages of costs.yaml ``continuation`` (cost terms faded in) before the final problem."""
+    cost_tolerance: float = 1e-7
+    """Also stop (converged, reason ``cost_stalled``) once the trajectory is feasible and the cost changed by less
+    than this fraction over the last ``stall_iterations`` iterations, all full steps; 0 disables it."""
+    stall_iterations: int = 5
+
+
+_TERM_OF_COST: Final = {
+    "wrench_cone": "contact_stability",
+    "joint_limits": "joint_limits",
+    "foot": "foot",
+    "com": "com",
+    "posture": "posture",
+    "torque": "torque",
+}
+"""Cost-name prefix in the action models -> costs.yaml section (continuation stages scale by section)."""
+
+
+def _cost_sums(problem: crocoddyl.ShootingProblem) -> list[crocoddyl.CostModelSum]:
+    models = [*problem.runningModels, problem.terminalModel]
+    return [m.differential.costs if hasattr(m, "differential") else m.costs for m in models]
+
+
+def _scale_costs(
+    sums: Sequence[crocoddyl.CostModelSum], base: Sequence[Mapping[str, float]], scale: Mapping[str, float]
+) -> None:
+    """Set every cost's weight to its configured weight times ``scale[section]`` (0 switches the cost off)."""
+    for costs, weights in zip(sums, base, strict=True):
+        for name, weight in weights.items():
+            section = next((v for k, v in _TERM_OF_COST.items() if name.startswith(k)), None)
+            factor = float(scale.get(section, 1.0)) if section else 1.0
+            costs.changeCostStatus(name, factor > 0.0)
+            costs.costs[name].weight = weight * factor if factor > 0.0 else weight
 
 
 class _ProgressCallback(crocoddyl.CallbackAbstract):  # type: ignore[misc]
-    """Forwards (iteration, cost, stop) of every Box-FDDP iteration to a Python callable."""
+    """Forwards (iteration, cost, stop) of every Box-FDDP iteration to a Python callable (iterations counted over
+    all stages) and ends the solve once the cost stalls on a feasible trajectory (SolverSettings.cost_tolerance)."""
 
-    def __init__(self, report: ProgressCallback) -> None:
+    def __init__(self, report: ProgressCallback | None, offset: int, tolerance: float, window: int) -> None:
         crocoddyl.CallbackAbstract.__init__(self)
-        self._report = report
+        self._report, self._offset, self._tolerance, self._window = report, offset, tolerance, window
+        self._costs: list[float] = []
+        self.stalled = False
 
     def __call__(self, solver: crocoddyl.SolverAbstract) -> None:
-        self._report(int(solver.iter), float(solver.cost), float(solver.stop))
+        cost = float(solver.cost)
+        if self._report is not None:
+            self._report(self._offset + int(solver.iter), cost, float(solver.stop))
+        # a plateau of tiny line-search steps is not convergence: only full steps (the Newton step of the local
+        # quadratic model) that no longer change the cost count
+        self._costs.append(cost if solver.isFeasible and solver.stepLength >= 1.0 else math.nan)
+        if self._tolerance > 0 and len(self._costs) > self._window:
+            recent = self._costs[-1 - self._window :]
+            if all(math.isfinite(c) for c in recent) and max(recent) - min(recent) <= self._tolerance * max(
+                1.0, abs(cost)
+            ):
+                self.stalled = True
+                solver.th_stop = math.inf  # Box-FDDP returns after this callback: the next test of stop passes
 
 
 @dataclass(frozen=True, eq=False)
@@ -693,26 +842,51 @@ def _extract(built: BuiltProblem, solver: crocoddyl.SolverBoxFDDP, log: Mapping[
     )
 
 
-def solve(motion: MotionSpec, settings: SolverSettings | None = None) -> PlanResult:
-    """Build and solve ``motion`` with Box-FDDP; returns the knots, wrenches, CoPs and the solver log."""
+def solve(
+    motion: MotionSpec, settings: SolverSettings | None = None, *, limit_scale: LimitScaleLike | None = None
+) -> PlanResult:
+    """Build and solve ``motion`` with Box-FDDP; returns the knots, wrenches, CoPs and the solver log.
+
+    ``limit_scale`` plans with scaled joint limits (see :data:`LimitScaleLike`); ``PlanResult.robot`` then
+    carries the scaled limits, and the solver log the factors that differ from 1."""
     settings = settings or SolverSettings()
     t_build = time.perf_counter()
-    built = build_problem(motion, settings.cost_config, interpolate_guess=settings.interpolate_guess)
+    built = build_problem(
+        motion, settings.cost_config, interpolate_guess=settings.interpolate_guess, limit_scale=limit_scale
+    )
     built.problem.nthreads = settings.nthreads
     solver = crocoddyl.SolverBoxFDDP(built.problem)
-    solver.th_stop = settings.stop_threshold
-    callbacks: list[Any] = []
-    if settings.callback is not None:
-        callbacks.append(_ProgressCallback(settings.callback))
-    if settings.verbose:
-        callbacks.append(crocoddyl.CallbackVerbose())
-    solver.setCallbacks(callbacks)
     build_time = time.perf_counter() - t_build
+    config = motion_config(motion.name, settings.cost_config or load_cost_config())
+    stages = [*(config.get("continuation") or []), {}] if settings.continuation else [{}]
+    sums = _cost_sums(built.problem)
+    base = [{name: float(item.weight) for name, item in costs.costs.todict().items()} for costs in sums]
+    xs, us, feasible = built.xs_guess, built.us_guess, False
+    iterations, stage_log = 0, []
     t_solve = time.perf_counter()
-    solved = bool(solver.solve(built.xs_guess, built.us_guess, settings.max_iterations, False))
+    for k, stage in enumerate(stages):
+        final = k == len(stages) - 1
+        _scale_costs(sums, base, stage.get("scale", {}))
+        threshold = settings.stop_threshold if final else float(stage["stop_threshold"])
+        solver.th_stop = threshold
+        monitor = _ProgressCallback(
+            settings.callback, iterations, settings.cost_tolerance if final else 0.0, settings.stall_iterations
+        )
+        solver.setCallbacks([monitor, crocoddyl.CallbackVerbose()] if settings.verbose else [monitor])
+        budget = (
+            settings.max_iterations - iterations
+            if final
+            else min(int(stage.get("max_iterations", 50)), settings.max_iterations - iterations)
+        )
+        solved = bool(solver.solve(xs, us, max(1, budget), feasible)) or monitor.stalled
+        iterations += int(solver.iter)
+        stage_log.append(
+            {"scale": dict(stage.get("scale", {})), "iterations": int(solver.iter), "cost": float(solver.cost)}
+        )
+        xs, us, feasible = list(solver.xs), list(solver.us), bool(solver.isFeasible)
     solve_time = time.perf_counter() - t_solve
+    solver.th_stop = settings.stop_threshold
     knots = len(built.specs)
-    iterations = int(solver.iter)
     converged = solved and bool(solver.isFeasible)
     log = {
         "solver": "BoxFDDP",
@@ -726,10 +900,22 @@ def solve(motion: MotionSpec, settings: SolverSettings | None = None) -> PlanRes
         "build_time_s": build_time,
         "knots": knots,
         "ms_per_knot_iteration": 1e3 * solve_time / max(1, knots * max(1, iterations)),
+        "stop_reason": ("gradient" if float(solver.stop) < settings.stop_threshold else "cost_stalled")
+        if converged
+        else "iteration_limit",
+        "stages": stage_log,
         "nthreads": settings.nthreads,
         "cost_terms": sorted(built.terms),
         "mass_kg": robot_mass(built.robot),
     }
+    scaled = {
+        f"{name}:{kind}": float(f[j])
+        for kind, f in limit_factors(limit_scale).items()
+        for j, name in enumerate(JOINT_NAMES)
+        if f[j] != 1.0
+    }
+    if scaled:
+        log["limit_factors"] = scaled
     if not math.isfinite(log["cost"]):
         log["converged"] = False
     return _extract(built, solver, log)

@@ -63,7 +63,8 @@ def plan(request: pytest.FixtureRequest) -> PlanResult:
 def _assert_converged(plan: PlanResult, max_iterations: int) -> None:
     log = plan.solver_log
     assert log["converged"], log
-    assert log["stop_criterion"] < STOP
+    # Box-FDDP's gradient test, or the cost stalled over full steps (SolverSettings.cost_tolerance)
+    assert log["stop_criterion"] < STOP or log["stop_reason"] == "cost_stalled"
     assert log["iterations"] <= max_iterations, log
     assert math.isfinite(log["cost"])
 
@@ -77,7 +78,7 @@ def test_fast_squats_converge(fast_squats: PlanResult) -> None:
 
 
 def test_walk_converges(walk: PlanResult) -> None:
-    _assert_converged(walk, 140)  # measured ~115
+    _assert_converged(walk, 80)  # measured 47 (13 + 14 + 20 over the continuation stages)
 
 
 def test_walk_moves_forward(walk: PlanResult) -> None:

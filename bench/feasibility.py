@@ -1,0 +1,96 @@
+"""Feasibility bench: the paper's table of hardware limits for its six design-analysis motions, and the
+design-improvement heuristic on the 10 cm vertical jump.
+
+Run: ``.venv/bin/python bench/feasibility.py [--motions a,b] [--max-iterations 200] [--no-design]
+[--design-motion vertical_jump_10cm] [--scale knee:velocity ...] [--factors 1,1.5,2,3,4] [--output FILE]``.
+
+Solves every motion (Box-FDDP, progress on stderr), prints the feasibility table (Markdown) with our actuator-space
+columns, compares the paper's three columns cell by cell (rh5_planner.limit_analysis.PAPER_FEASIBILITY), then runs
+the heuristic (default: scale the limits the nominal solution violates; the paper found knee velocity x3) and
+prints its steps. ``--output`` also writes everything to a Markdown file; ``--motions ""`` runs the heuristic
+only. Slow: the jumps have 90-270 knots.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import crocoddyl  # noqa: F401  (before pinocchio, design/crocoddyl_wheels.md)
+
+from rh5_planner.design import improve_design, parse_limit
+from rh5_planner.limit_analysis import FeasibilityTable, analyse
+from rh5_planner.motions import MOTIONS, get_motion
+from rh5_planner.plan_cli import PAPER_MOTIONS, ProgressBar
+from rh5_planner.problem import SolverSettings, solve
+
+
+def main() -> None:
+    """Solve, tabulate, compare, then run the heuristic."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--motions", default=",".join(PAPER_MOTIONS))
+    parser.add_argument("--max-iterations", type=int, default=200)
+    parser.add_argument("--stop-threshold", type=float, default=1e-7)
+    parser.add_argument("--nthreads", type=int, default=2)
+    parser.add_argument("--no-design", action="store_true")
+    parser.add_argument("--design-motion", default="vertical_jump_10cm")
+    parser.add_argument("--scale", action="append", default=[], help="PATTERN:KIND (default: the violated limits)")
+    parser.add_argument("--factors", default="1,1.5,2,3,4")
+    parser.add_argument("--output", type=Path, default=None)
+    args = parser.parse_args()
+    names = [n for n in args.motions.split(",") if n]  # empty: heuristic only
+    for name in [*names, args.design_motion]:
+        if name not in MOTIONS:
+            parser.error(f"unknown motion {name!r}; known: {sorted(MOTIONS)}")
+
+    def settings(label: str) -> tuple[SolverSettings, ProgressBar]:
+        bar = ProgressBar(args.max_iterations, args.stop_threshold, label=f"{label} ", interval_s=5.0)
+        return SolverSettings(args.max_iterations, args.stop_threshold, args.nthreads, callback=bar), bar
+
+    analyses, timing = [], []
+    for name in names:
+        solver_settings, bar = settings(name)
+        start = time.perf_counter()
+        result = solve(get_motion(name), solver_settings)
+        log = result.solver_log
+        bar.finish("converged" if result.converged else "NOT converged")
+        analyses.append(analyse(result))
+        timing.append(
+            f"- {name}: {log['knots']} knots, {log['iterations']} iterations, "
+            f"{'converged' if result.converged else 'NOT converged'} (stop {log['stop_criterion']:.1e}), "
+            f"solve {log['solve_time_s']:.1f} s, total {time.perf_counter() - start:.1f} s"
+        )
+    table = FeasibilityTable(analyses)
+    report = ["# Feasibility of the paper's motions", "", table.to_markdown(), "", table.comparison_text(), *timing, ""]
+    if not analyses:
+        report = []
+    for a in analyses:
+        details = "; ".join(f"{k}: {', '.join(v)}" for k, v in a.violations().items()) or "none"
+        report.append(f"- {a.motion} violations: {details}")
+    print("\n".join(report), flush=True)
+
+    if not args.no_design:
+        limits = [parse_limit(s) for s in args.scale] or None
+        factors = tuple(float(f) for f in args.factors.split(","))
+        solver_settings, bar = settings(args.design_motion)
+
+        def on_step(step: object) -> None:
+            bar.finish(step.describe())  # type: ignore[attr-defined]
+            bar.restart()
+
+        result = improve_design(
+            get_motion(args.design_motion), limits, factors=factors, settings=solver_settings, on_step=on_step
+        )
+        design_text = ["", "## Design-improvement heuristic", "", "```", result.report(), "```", ""]
+        print("\n".join(design_text), flush=True)
+        report += design_text
+    if args.output is not None:
+        args.output.parent.mkdir(parents=True, exist_ok=True)
+        args.output.write_text("\n".join(report), encoding="utf-8")
+        print(f"written: {args.output}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,565 @@
+"""Limit analysis of a planned motion and the feasibility table of the paper ("Capabilities of the RH5 humanoid to
+perform a wide range of motions respecting the hardware limits", tab:systemLimits).
+
+For one trajectory (a :class:`~rh5_msgs_py.trajectory_file.TrajectoryData` or a
+:class:`~rh5_planner.problem.PlanResult`) :func:`analyse` computes, per joint, the utilisation (peak |value| /
+limit; for positions the distance from the middle of the range over its half-width, 1 at either end) and the
+number of knots over the limit of
+
+* the joint-space limits of ``joint_limits()`` (position range, velocity and torque, the upper ends of the
+  paper's configuration-dependent ranges, as the planner uses them), and
+* the actuator-space limits (stroke, velocity, force) of the joints driven by parallel mechanisms or the head
+  transmission, through the HyRoDyn-style mapper: the configuration-dependent limits the paper's table could not
+  show. Pass-through rotary joints are left out there (their actuator limits are the joint limits);
+
+and the contact stability: the fraction of contact knots whose CoP lies in the allowed rectangle (costs.yaml
+``cop_fraction`` of the 200 x 80 mm sole) and whose contact force lies in the friction cone (costs.yaml ``mu``,
+|f_t| <= mu f_z with f_z > 0).
+
+:class:`FeasibilityTable` puts analyses in the paper's form (a tick where every limit holds, else the number of
+joints, or actuators, violating it; for CoP and friction the number of foot-knots outside), prints it as text or
+Markdown and compares it with :data:`PAPER_FEASIBILITY`. :class:`LimitScale` describes scaled limits (the
+design-improvement heuristic of :mod:`rh5_planner.design` checks a solution against the limits it was planned with).
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Final
+
+import numpy as np
+import numpy.typing as npt
+
+from rh5_hyrodyn_mapper.kinematics.base import KinematicsError
+from rh5_hyrodyn_mapper.mapping import robot_mapper
+from rh5_hyrodyn_mapper.model import JointLimits, joint_limits
+from rh5_msgs_py.names import ACTUATOR_INDEX, JOINT_GROUPS, JOINT_INDEX, JOINT_NAMES, SUBMECHANISMS
+from rh5_msgs_py.trajectory_file import TrajectoryData
+
+if TYPE_CHECKING:
+    from .problem import PlanResult
+
+__all__ = [
+    "ACTUATOR_KINDS",
+    "COLUMNS",
+    "FOOT_SIZE_M",
+    "JOINT_KINDS",
+    "MAPPED_ACTUATORS",
+    "PAPER_FEASIBILITY",
+    "Comparison",
+    "ContactCheck",
+    "FeasibilityTable",
+    "LimitAnalysis",
+    "LimitScale",
+    "LimitUsage",
+    "analyse",
+    "contact_check",
+    "match_joints",
+    "side_free_name",
+]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+FOOT_SIZE_M: Final = (0.200, 0.080)
+"""Sole support rectangle length x width (rh5_paper_facts.yaml legs.foot.support_polygon_m)."""
+JOINT_KINDS: Final = ("position", "velocity", "torque")
+"""Joint-space limit kinds; also the kinds :class:`LimitScale` scales."""
+ACTUATOR_KINDS: Final = ("stroke", "actuator_velocity", "force")
+"""Actuator-space limit kinds, checked through the mapper."""
+_ACTUATOR_OF_JOINT_KIND: Final = {"position": "stroke", "velocity": "actuator_velocity", "torque": "force"}
+COLUMNS: Final = ("position", "torque", "velocity", *ACTUATOR_KINDS, "cop", "friction")
+"""Columns of the feasibility table: the paper's three (its order: position, torque, velocity), ours after."""
+COLUMN_TITLES: Final = {
+    "position": "Pos. Lim.",
+    "torque": "Torque Lim.",
+    "velocity": "Vel. Lim.",
+    "stroke": "Act. stroke",
+    "actuator_velocity": "Act. vel.",
+    "force": "Act. force",
+    "cop": "CoP",
+    "friction": "Friction",
+}
+MAPPED_ACTUATORS: Final[tuple[str, ...]] = tuple(a for s in SUBMECHANISMS if s.kind != "serial" for a in s.actuators)
+"""Actuators of the parallel mechanisms and the head transmission: the ones with limits of their own."""
+_MAPPED_JOINTS: Final[dict[str, tuple[str, ...]]] = {
+    a: s.joints for s in SUBMECHANISMS if s.kind != "serial" for a in s.actuators
+}
+
+PAPER_FEASIBILITY: Final[dict[str, dict[str, int]]] = {
+    "walk_with_5kg_weights": {"position": 0, "torque": 0, "velocity": 0},
+    "fast_walk_1m_s": {"position": 0, "torque": 0, "velocity": 0},
+    "squat_with_5kg_weights": {"position": 0, "torque": 0, "velocity": 0},
+    "vertical_jump_1cm": {"position": 0, "torque": 0, "velocity": 0},
+    "vertical_jump_10cm": {"position": 0, "torque": 0, "velocity": 3},
+    "obstacle_jumps": {"position": 0, "torque": 5, "velocity": 7},
+}
+"""The paper's table tab:systemLimits (Esser et al., RH5 paper; rh5_paper_facts.yaml ``feasibility``): 0 is a tick,
+n > 0 the number of violations it reports. The text says the 10 cm jump exceeds the body pitch and knee velocity
+limits (3 = BodyPitch and both knees): the counts are joints."""
+_TICK: Final = "\u2713"
+_CROSS: Final = "\u2717"
+
+
+def side_free_name(joint: str) -> str:
+    """The joint name without its side letter (``LLKnee`` -> ``Knee``, ``ARElbow`` -> ``Elbow``): one name for a
+    symmetric pair, used to group plots and limit patterns."""
+    for group in ("left_leg", "right_leg", "left_arm", "right_arm"):
+        if joint in JOINT_GROUPS[group]:
+            return joint[2:]
+    return joint
+
+
+# --------------------------------------------------------------------------------------------------
+# scaled limits
+
+
+@dataclass(frozen=True)
+class LimitScale:
+    """Factors on joint limits: ``entries`` are (pattern, kind, factor); kind is one of :data:`JOINT_KINDS`.
+
+    A pattern matches joint names case-insensitively, as a shell pattern (``LL*``) or, without wildcards, as a
+    substring (``knee`` matches LLKnee and LRKnee). Where several entries match a joint and kind, the last wins.
+    Position factors widen the range about its middle. In actuator space a factor applies to the matching limit
+    kind (stroke, velocity, force) of every actuator of the joint's mechanism: a faster knee is a faster knee
+    actuator.
+    """
+
+    entries: tuple[tuple[str, str, float], ...] = ()
+
+    def __post_init__(self) -> None:
+        clean = []
+        for pattern, kind, factor in self.entries:
+            if kind not in JOINT_KINDS:
+                msg = f"unknown limit kind {kind!r}; known: {list(JOINT_KINDS)}"
+                raise ValueError(msg)
+            if not (isinstance(factor, int | float) and math.isfinite(factor) and factor > 0):
+                msg = f"limit factor must be a positive number, got {factor!r}"
+                raise ValueError(msg)
+            if not match_joints(pattern):
+                msg = f"pattern {pattern!r} matches no joint; joints: {list(JOINT_NAMES)}"
+                raise ValueError(msg)
+            clean.append((str(pattern), str(kind), float(factor)))
+        object.__setattr__(self, "entries", tuple(clean))
+
+    @classmethod
+    def uniform(cls, limits: Iterable[tuple[str, str]], factor: float) -> LimitScale:
+        """Every (pattern, kind) of ``limits`` scaled by ``factor``."""
+        return cls(tuple((pattern, kind, factor) for pattern, kind in limits))
+
+    def factors(self, kind: str) -> FloatArray:
+        """(32,) factor of every joint (JOINT_NAMES order) for ``kind``."""
+        out = np.ones(len(JOINT_NAMES))
+        for pattern, entry_kind, factor in self.entries:
+            if entry_kind == kind:
+                out[[JOINT_INDEX[j] for j in match_joints(pattern)]] = factor
+        return out
+
+    def actuator_factors(self, kind: str) -> FloatArray:
+        """(len(MAPPED_ACTUATORS),) factor per mapped actuator for actuator kind ``kind`` (largest of its joints)."""
+        joint_kind = {v: k for k, v in _ACTUATOR_OF_JOINT_KIND.items()}[kind]
+        joint_factors = self.factors(joint_kind)
+        return np.array([max(joint_factors[JOINT_INDEX[j]] for j in _MAPPED_JOINTS[a]) for a in MAPPED_ACTUATORS])
+
+    def describe(self) -> str:
+        """Human-readable: ``knee velocity x3 (LLKnee, LRKnee)``; ``nominal limits`` when empty."""
+        if not self.entries:
+            return "nominal limits"
+        return "; ".join(
+            f"{pattern} {kind} x{factor:g} ({', '.join(match_joints(pattern))})"
+            for pattern, kind, factor in self.entries
+        )
+
+    def to_json(self) -> list[list[Any]]:
+        """JSON-able form (solver logs, reports)."""
+        return [list(entry) for entry in self.entries]
+
+    def __bool__(self) -> bool:
+        """Whether any limit is scaled by a factor other than 1."""
+        return any(factor != 1.0 for _, _, factor in self.entries)
+
+
+def match_joints(pattern: str) -> tuple[str, ...]:
+    """Joint names matching ``pattern`` (see :class:`LimitScale`), in JOINT_NAMES order."""
+    p = pattern.lower()
+    glob = p if any(c in p for c in "*?[") else f"*{p}*"
+    return tuple(j for j in JOINT_NAMES if fnmatch.fnmatchcase(j.lower(), glob))
+
+
+def _scaled_joint_limits(limits: JointLimits, scale: LimitScale) -> dict[str, tuple[FloatArray, FloatArray]]:
+    """Per joint kind, (middle, half-width) of the allowed interval after scaling (symmetric kinds: middle 0)."""
+    lo, hi = np.asarray(limits.position_lower), np.asarray(limits.position_upper)
+    zero = np.zeros(len(JOINT_NAMES))
+    return {
+        "position": (0.5 * (lo + hi), 0.5 * (hi - lo) * scale.factors("position")),
+        "velocity": (zero, np.asarray(limits.velocity_max) * scale.factors("velocity")),
+        "torque": (zero, np.asarray(limits.torque_max) * scale.factors("torque")),
+    }
+
+
+# --------------------------------------------------------------------------------------------------
+# results
+
+
+@dataclass(frozen=True, eq=False)
+class LimitUsage:
+    """One limit kind for a set of joints or actuators: peak utilisation (1 = at the limit), knots over it."""
+
+    kind: str
+    names: tuple[str, ...]
+    utilisation: FloatArray
+    """(N, len(names)) |value - middle| / half-width at every knot."""
+    tolerance: float = 1e-6
+
+    @property
+    def peak(self) -> FloatArray:
+        """(len(names),) highest utilisation."""
+        return self.utilisation.max(axis=0, initial=0.0)
+
+    @property
+    def counts(self) -> IntArray:
+        """(len(names),) number of knots over the limit (utilisation > 1 + tolerance)."""
+        return np.count_nonzero(self.utilisation > 1.0 + self.tolerance, axis=0).astype(np.int64)
+
+    @property
+    def violating(self) -> tuple[str, ...]:
+        """Names whose limit is exceeded at some knot."""
+        return tuple(n for n, c in zip(self.names, self.counts, strict=True) if c > 0)
+
+    @property
+    def ok(self) -> bool:
+        """Whether the limit holds for every name at every knot."""
+        return not self.violating
+
+    def worst(self, count: int = 3) -> list[tuple[str, float]]:
+        """The ``count`` names of highest peak utilisation, highest first."""
+        order = np.argsort(-self.peak)[:count]
+        return [(self.names[i], float(self.peak[i])) for i in order]
+
+
+@dataclass(frozen=True)
+class ContactCheck:
+    """Contact stability over the contact knots (counted per foot and knot)."""
+
+    contact_knots: int
+    cop_outside: int
+    friction_outside: int
+    cop_fraction: float
+    mu: float
+
+    @property
+    def cop_inside_ratio(self) -> float:
+        """Fraction of foot-knots in contact with the CoP inside the allowed rectangle (1.0 without contact)."""
+        return 1.0 - self.cop_outside / self.contact_knots if self.contact_knots else 1.0
+
+    @property
+    def friction_inside_ratio(self) -> float:
+        """Fraction of foot-knots in contact whose force lies in the friction cone (1.0 without contact)."""
+        return 1.0 - self.friction_outside / self.contact_knots if self.contact_knots else 1.0
+
+
+@dataclass(frozen=True, eq=False)
+class LimitAnalysis:
+    """Every limit of one trajectory: joint space, actuator space (None if the mapping failed), contacts."""
+
+    motion: str
+    converged: bool | None
+    joint: Mapping[str, LimitUsage]
+    actuator: Mapping[str, LimitUsage] | None
+    contact: ContactCheck
+    scale: LimitScale = field(default_factory=LimitScale)
+    actuator_error: str = ""
+
+    def count(self, column: str) -> int | None:
+        """The table entry of ``column`` (see :data:`COLUMNS`): 0 = holds; None = not available."""
+        if column in JOINT_KINDS:
+            return len(self.joint[column].violating)
+        if column in ACTUATOR_KINDS:
+            return None if self.actuator is None else len(self.actuator[column].violating)
+        if column == "cop":
+            return self.contact.cop_outside
+        if column == "friction":
+            return self.contact.friction_outside
+        msg = f"unknown column {column!r}; known: {list(COLUMNS)}"
+        raise KeyError(msg)
+
+    def feasible(self, columns: Sequence[str] = JOINT_KINDS) -> bool:
+        """Whether every limit of ``columns`` holds (an unavailable column counts as failed)."""
+        return all(self.count(c) == 0 for c in columns)
+
+    def violations(self) -> dict[str, tuple[str, ...]]:
+        """The violating joints/actuators per limit kind (kinds without violations left out)."""
+        usages = {**self.joint, **(self.actuator or {})}
+        return {kind: usage.violating for kind, usage in usages.items() if usage.violating}
+
+    def to_markdown(self) -> str:
+        """Per-joint and per-actuator peak utilisation (%) and knots over the limit, plus the contact summary."""
+        lines = [f"# Limits of {self.motion}", ""]
+        if self.scale:
+            lines += [f"Checked against scaled limits: {self.scale.describe()}.", ""]
+        status = {True: "converged", False: "NOT converged", None: "convergence unknown"}[self.converged]
+        lines += [
+            f"Solver: {status}. Utilisation = peak |value| / limit (positions: from mid-range), in %; "
+            "in brackets the number of knots over the limit.",
+            "",
+        ]
+        lines += ["## Feasibility", "", *FeasibilityTable([self]).to_markdown().splitlines(), ""]
+        lines += ["## Joint space", "", "| joint | position | velocity | torque |", "|---|---:|---:|---:|"]
+        usage = [self.joint[k] for k in JOINT_KINDS]
+        for i, name in enumerate(JOINT_NAMES):
+            lines.append(f"| {name} | " + " | ".join(_cell(u, i) for u in usage) + " |")
+        lines += ["", "## Actuator space (parallel mechanisms and head transmission)", ""]
+        if self.actuator is None:
+            lines.append(f"Not available: {self.actuator_error}")
+        else:
+            lines += ["| actuator | stroke | velocity | force |", "|---|---:|---:|---:|"]
+            usage = [self.actuator[k] for k in ACTUATOR_KINDS]
+            for i, name in enumerate(MAPPED_ACTUATORS):
+                lines.append(f"| {name} | " + " | ".join(_cell(u, i) for u in usage) + " |")
+        c = self.contact
+        lines += [
+            "",
+            "## Contact stability",
+            "",
+            f"- contact foot-knots: {c.contact_knots}",
+            f"- CoP inside the {100 * c.cop_fraction:g} % sole rectangle: {100 * c.cop_inside_ratio:.1f} % "
+            f"({c.cop_outside} outside)",
+            f"- inside the friction cone (mu = {c.mu:g}): {100 * c.friction_inside_ratio:.1f} % "
+            f"({c.friction_outside} outside)",
+            "",
+        ]
+        return "\n".join(lines)
+
+
+def _cell(usage: LimitUsage, i: int) -> str:
+    text = f"{100 * usage.peak[i]:.0f}"
+    count = int(usage.counts[i])
+    return f"**{text} ({count})**" if count else text
+
+
+# --------------------------------------------------------------------------------------------------
+# analysis
+
+
+def _trajectory(source: TrajectoryData | PlanResult) -> tuple[TrajectoryData, bool | None]:
+    if isinstance(source, TrajectoryData):
+        converged = source.solver_log.get("converged")
+        return source, None if converged is None else bool(converged)
+    return source.to_trajectory_data(), bool(source.converged)
+
+
+def _usage(
+    kind: str, names: tuple[str, ...], values: FloatArray, bounds: tuple[FloatArray, FloatArray], tolerance: float
+) -> LimitUsage:
+    """Utilisation of ``values`` against ``bounds`` = (middle, half-width) of the allowed interval."""
+    middle, half = bounds
+    utilisation = np.abs(np.atleast_2d(values) - middle) / half
+    return LimitUsage(kind, names, utilisation, tolerance)
+
+
+def contact_check(
+    data: TrajectoryData,
+    *,
+    cop_fraction: float | None = None,
+    mu: float | None = None,
+    cop_tolerance_m: float = 1e-3,
+    friction_tolerance_n: float = 1.0,
+) -> ContactCheck:
+    """CoP and friction cone at every contact knot of every foot.
+
+    Defaults from costs.yaml (``cop_fraction``, ``mu``: the unshrunk region, not the optimiser's margin). The
+    tolerances are the acceptance tolerances of the planner's tests: the soft barrier may overshoot by a little.
+    A contact knot without positive normal force fails both checks.
+    """
+    if cop_fraction is None or mu is None:
+        from .problem import load_cost_config  # noqa: PLC0415  (Crocoddyl only when the config is needed)
+
+        cs = load_cost_config()["contact_stability"]
+        cop_fraction = float(cs["cop_fraction"]) if cop_fraction is None else cop_fraction
+        mu = float(cs["mu"]) if mu is None else mu
+    contact = np.asarray(data.contact_phases, dtype=bool)
+    wrench = np.asarray(data.contact_wrenches)[contact]  # (K, 6)
+    cop = np.asarray(data.cop)[contact]  # (K, 2)
+    half = 0.5 * cop_fraction * np.array(FOOT_SIZE_M) + cop_tolerance_m
+    fz = wrench[:, 2]
+    with np.errstate(invalid="ignore"):
+        cop_in = (fz > 0) & np.all(np.abs(cop) <= half, axis=1)  # NaN CoP compares False
+    friction_in = (fz > 0) & (np.linalg.norm(wrench[:, :2], axis=1) <= mu * fz + friction_tolerance_n)
+    k = int(contact.sum())
+    return ContactCheck(k, k - int(cop_in.sum()), k - int(friction_in.sum()), float(cop_fraction), float(mu))
+
+
+def analyse(
+    source: TrajectoryData | PlanResult,
+    *,
+    scale: LimitScale | None = None,
+    tolerance: float = 1e-6,
+    cop_fraction: float | None = None,
+    mu: float | None = None,
+) -> LimitAnalysis:
+    """All limits of a planned trajectory, against the (optionally scaled) joint and actuator limits.
+
+    ``tolerance`` is relative: a value counts as a violation above (1 + tolerance) x limit. Torques are the
+    N-1 controls (row k acts from knot k on) and are mapped to actuator forces at the configuration of knot k.
+    """
+    data, converged = _trajectory(source)
+    scale = scale or LimitScale()
+    q, v = data.joint_positions(), data.joint_velocities()
+    tau = np.asarray(data.controls)
+    bounds = _scaled_joint_limits(joint_limits(), scale)
+    values = {"position": q, "velocity": v, "torque": tau}
+    joint = {k: _usage(k, JOINT_NAMES, values[k], bounds[k], tolerance) for k in JOINT_KINDS}
+    actuator, error = _actuator_usage(q, v, tau, scale, tolerance)
+    contact = contact_check(data, cop_fraction=cop_fraction, mu=mu)
+    name = str(data.motion.get("name", "?"))
+    return LimitAnalysis(name, converged, joint, actuator, contact, scale, error)
+
+
+def _actuator_usage(
+    q: FloatArray, v: FloatArray, tau: FloatArray, scale: LimitScale, tolerance: float
+) -> tuple[dict[str, LimitUsage] | None, str]:
+    """Stroke, velocity and force utilisation of the mapped actuators (None and the reason if mapping fails)."""
+    mapper = robot_mapper()
+    idx = np.array([ACTUATOR_INDEX[a] for a in MAPPED_ACTUATORS])
+    try:
+        kinematic = mapper.to_actuators(q, v)
+        forces = mapper.to_actuators(q[: len(tau)], None, None, tau).effort
+    except (KinematicsError, ValueError) as err:
+        return None, f"{type(err).__name__}: {err}"
+    lo, hi = mapper.length_min[idx], mapper.length_max[idx]
+    zero = np.zeros(idx.size)
+    bounds = {
+        "stroke": (0.5 * (lo + hi), 0.5 * (hi - lo)),
+        "actuator_velocity": (zero, mapper.velocity_max[idx]),
+        "force": (zero, mapper.force_max[idx]),
+    }
+    values = {"stroke": kinematic.position, "actuator_velocity": kinematic.velocity, "force": forces}
+    out = {
+        kind: _usage(
+            kind,
+            MAPPED_ACTUATORS,
+            np.asarray(values[kind])[:, idx],
+            (bounds[kind][0], bounds[kind][1] * scale.actuator_factors(kind)),
+            tolerance,
+        )
+        for kind in ACTUATOR_KINDS
+    }
+    return out, ""
+
+
+# --------------------------------------------------------------------------------------------------
+# the feasibility table
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """One cell of the paper's table against ours."""
+
+    motion: str
+    column: str
+    paper: int
+    ours: int | None
+
+    @property
+    def agree(self) -> bool:
+        """Same entry (tick and tick, or the same number of violating joints)."""
+        return self.ours == self.paper
+
+    @property
+    def same_verdict(self) -> bool:
+        """Both feasible or both infeasible for this limit (counts may differ)."""
+        return self.ours is not None and (self.ours == 0) == (self.paper == 0)
+
+    def describe(self) -> str:
+        """``vertical_jump_10cm / Vel. Lim.: paper ✗3, ours ✗2: disagree (both violate)``."""
+        if self.agree:
+            verdict = "agree"
+        elif self.same_verdict:
+            verdict = "disagree (both violate, other count)"
+        else:
+            verdict = "DISAGREE"
+        return (
+            f"{self.motion} / {COLUMN_TITLES[self.column]}: paper {_entry(self.paper)}, ours {_entry(self.ours)}: "
+            f"{verdict}"
+        )
+
+
+def _entry(count: int | None) -> str:
+    if count is None:
+        return "n/a"
+    return _TICK if count == 0 else f"{_CROSS}{count}"
+
+
+@dataclass(frozen=True, eq=False)
+class FeasibilityTable:
+    """Analyses of several motions in the paper's table form (rows: motions, columns: :data:`COLUMNS`)."""
+
+    analyses: Sequence[LimitAnalysis]
+    columns: tuple[str, ...] = COLUMNS
+
+    def rows(self) -> list[tuple[str, list[str]]]:
+        """(motion, cells) with ticks, crosses and counts."""
+        return [(a.motion, [_entry(a.count(c)) for c in self.columns]) for a in self.analyses]
+
+    def _header(self) -> list[str]:
+        return ["Motion", "Conv.", *(COLUMN_TITLES[c] for c in self.columns)]
+
+    def _body(self) -> list[list[str]]:
+        out = []
+        for a, (motion, cells) in zip(self.analyses, self.rows(), strict=True):
+            conv = {True: "yes", False: "NO", None: "?"}[a.converged]
+            label = motion + (f" [{a.scale.describe()}]" if a.scale else "")
+            out.append([label, conv, *cells])
+        return out
+
+    def to_markdown(self) -> str:
+        """GitHub Markdown table."""
+        header = self._header()
+        lines = ["| " + " | ".join(header) + " |", "|" + "|".join(["---", *[":-:"] * (len(header) - 1)]) + "|"]
+        lines += ["| " + " | ".join(row) + " |" for row in self._body()]
+        return "\n".join(lines) + "\n\n" + _LEGEND
+
+    def to_text(self) -> str:
+        """Plain text with aligned columns."""
+        rows = [self._header(), *self._body()]
+        widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+        lines = [
+            "  ".join(
+                cell.ljust(w) if i == 0 else cell.center(w) for i, (cell, w) in enumerate(zip(row, widths, strict=True))
+            ).rstrip()
+            for row in rows
+        ]
+        lines.insert(1, "-" * len(lines[0]))
+        return "\n".join(lines) + "\n" + _LEGEND
+
+    def compare_with_paper(self) -> list[Comparison]:
+        """Every cell the paper has (motions of :data:`PAPER_FEASIBILITY` present here, its three columns)."""
+        out = []
+        for a in self.analyses:
+            paper = PAPER_FEASIBILITY.get(a.motion)
+            if paper is None:
+                continue
+            out.extend(Comparison(a.motion, c, paper[c], a.count(c)) for c in ("position", "torque", "velocity"))
+        return out
+
+    def comparison_text(self) -> str:
+        """The paper's table next to ours, one line per cell, and the agreement count."""
+        comparisons = self.compare_with_paper()
+        if not comparisons:
+            return "No motion of the paper's table (tab:systemLimits) in this table.\n"
+        agree = sum(c.agree for c in comparisons)
+        verdict = sum(c.same_verdict for c in comparisons)
+        lines = ["Comparison with the paper's table (tab:systemLimits):"]
+        lines += [f"  {c.describe()}" for c in comparisons]
+        lines.append(f"{agree}/{len(comparisons)} cells agree; {verdict}/{len(comparisons)} give the same verdict.")
+        return "\n".join(lines) + "\n"
+
+
+_LEGEND: Final = (
+    f"{_TICK}: the limit holds at every knot; {_CROSS}n: n joints (Pos./Torque/Vel., joint space) or n actuators "
+    "(Act. *, parallel mechanisms and head) exceed it; CoP/Friction: foot-knots in contact outside the allowed "
+    "region; n/a: mapping to actuator space failed.\n"
+)

@@ -1,0 +1,213 @@
+"""The paper's planning figures as PNGs (matplotlib Figure objects rendered by Agg: no display, no pyplot state).
+
+* :func:`plot_cop`: the CoP of each foot over time (crosses) against the allowed region, the 200 x 80 mm sole
+  scaled to the configured fraction (dashed; the paper's "50 % foot coverage", fig:walkCoP), plus a top view of
+  the sole with every CoP.
+* :func:`plot_joints`: joint positions, velocities and torques against their limits (dashed), one column per
+  joint of a symmetric pair (left solid, right dotted), by default the leg joints (fig:walkWeights_jointSpace).
+  For the joints driven by one linear actuator (Hip3, knee) the configuration-dependent velocity and torque limits
+  along the trajectory (actuator limit through the mechanism's transmission ratio) are drawn dash-dotted: the
+  paper's figure could only show the joint table's constant values.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
+
+from rh5_hyrodyn_mapper.kinematics.base import KinematicsError
+from rh5_hyrodyn_mapper.mapping import robot_mapper
+from rh5_hyrodyn_mapper.model import joint_limits
+from rh5_msgs_py.names import ACTUATOR_INDEX, JOINT_GROUPS, JOINT_INDEX, SUBMECHANISMS
+from rh5_msgs_py.trajectory_file import TrajectoryData
+
+from .limit_analysis import FOOT_SIZE_M, JOINT_KINDS, LimitScale, side_free_name
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+__all__ = ["LEG_JOINTS", "configuration_limits", "plot_cop", "plot_joints"]
+
+FloatArray = npt.NDArray[np.float64]
+
+LEG_JOINTS = JOINT_GROUPS["left_leg"] + JOINT_GROUPS["right_leg"]
+_FOOT_LABELS = ("LF", "RF")
+_FOOT_COLOURS = ("tab:blue", "tab:red")
+_UNITS = {"position": "rad", "velocity": "rad/s", "torque": "Nm"}
+
+
+def plot_cop(data: TrajectoryData, path: str | Path, *, cop_fraction: float = 0.5) -> Path:
+    """CoP x and y of each foot in its sole frame over time, and a top view of the sole, against the allowed
+    rectangle (``cop_fraction`` of each side of the 200 x 80 mm sole). Knots without contact are not drawn."""
+    path = Path(path)
+    times = np.asarray(data.times)
+    cop = np.asarray(data.cop)
+    contact = np.asarray(data.contact_phases, dtype=bool)
+    half = 0.5 * cop_fraction * np.array(FOOT_SIZE_M)
+    fig = Figure(figsize=(11, 5.5), layout="constrained")
+    grid = fig.add_gridspec(2, 2, width_ratios=(2.2, 1))
+    axes_time = [fig.add_subplot(grid[0, 0]), fig.add_subplot(grid[1, 0])]
+    top = fig.add_subplot(grid[:, 1])
+    for axis, ax in enumerate(axes_time):
+        for foot in range(2):
+            inside = contact[:, foot]
+            ax.plot(
+                times[inside],
+                1e3 * cop[inside, foot, axis],
+                "x",
+                color=_FOOT_COLOURS[foot],
+                label=_FOOT_LABELS[foot],
+                markersize=5,
+            )
+        for sign in (-1, 1):
+            ax.axhline(sign * 1e3 * half[axis], color="k", linestyle="--", linewidth=1)
+            ax.axhline(sign * 1e3 * 0.5 * FOOT_SIZE_M[axis], color="0.6", linewidth=1)
+        ax.set_ylabel(f"CoP {'xy'[axis]} [mm]")
+        ax.grid(alpha=0.3)
+    axes_time[0].legend(loc="upper right")
+    axes_time[0].set_title(
+        f"{data.motion.get('name', '')}: CoP per foot, allowed region {100 * cop_fraction:g} % (dashed), sole (grey)"
+    )
+    axes_time[1].set_xlabel("time [s]")
+    length, width = 1e3 * np.array(FOOT_SIZE_M)
+    top.add_patch(Rectangle((-length / 2, -width / 2), length, width, fill=False, edgecolor="0.6"))
+    top.add_patch(
+        Rectangle(
+            (-1e3 * half[0], -1e3 * half[1]), 2e3 * half[0], 2e3 * half[1], fill=False, edgecolor="k", linestyle="--"
+        )
+    )
+    for foot in range(2):
+        inside = contact[:, foot]
+        top.plot(
+            1e3 * cop[inside, foot, 0],
+            1e3 * cop[inside, foot, 1],
+            "x",
+            color=_FOOT_COLOURS[foot],
+            label=_FOOT_LABELS[foot],
+            markersize=5,
+        )
+    top.set_xlim(-0.6 * length, 0.6 * length)
+    top.set_ylim(-0.6 * length, 0.6 * length)
+    top.set_aspect("equal")
+    top.set_xlabel("x [mm] (forward)")
+    top.set_ylabel("y [mm]")
+    top.set_title("sole frame, top view")
+    top.grid(alpha=0.3)
+    fig.savefig(path, dpi=110)
+    return path
+
+
+_SINGLE_ACTUATOR_JOINTS = {s.joints[0]: s.actuators[0] for s in SUBMECHANISMS if s.kind == "1-RRPR"}
+
+
+def configuration_limits(q: FloatArray) -> dict[str, dict[str, FloatArray]]:
+    """Velocity and torque limits along ``q`` (N, 32) of the joints driven by one linear actuator (Hip3, knee):
+    actuator velocity / |dl/dq| and actuator force x |dl/dq|. Empty if the mapping fails."""
+    mapper = robot_mapper()
+    joints = list(_SINGLE_ACTUATOR_JOINTS)
+    unit = np.zeros_like(q)
+    unit[:, [JOINT_INDEX[j] for j in joints]] = 1.0  # one joint per mechanism: the rates do not interact
+    try:
+        rates = mapper.to_actuators(q, unit).velocity
+    except (KinematicsError, ValueError):
+        return {}
+    out = {}
+    for joint in joints:
+        a = ACTUATOR_INDEX[_SINGLE_ACTUATOR_JOINTS[joint]]
+        ratio = np.abs(np.asarray(rates)[:, a])
+        with np.errstate(divide="ignore"):
+            out[joint] = {"velocity": mapper.velocity_max[a] / ratio, "torque": mapper.force_max[a] * ratio}
+    return out
+
+
+def _columns(joints: Sequence[str]) -> list[list[str]]:
+    """Joints grouped by their side-free name, in first-seen order (a symmetric pair shares a column)."""
+    groups: dict[str, list[str]] = {}
+    for joint in joints:
+        if joint not in JOINT_INDEX:
+            msg = f"unknown joint {joint!r}"
+            raise ValueError(msg)
+        groups.setdefault(side_free_name(joint), []).append(joint)
+    return list(groups.values())
+
+
+def plot_joints(
+    data: TrajectoryData,
+    path: str | Path,
+    *,
+    joints: Sequence[str] = LEG_JOINTS,
+    scale: LimitScale | None = None,
+) -> Path:
+    """Positions, velocities and torques of ``joints`` over time against their limits (dashed; scaled by
+    ``scale`` when given). Torques are drawn as the zero-order hold the integrator applied."""
+    path = Path(path)
+    scale = scale or LimitScale()
+    limits = joint_limits()
+    times = np.asarray(data.times)
+    values = {
+        "position": np.asarray(data.joint_positions()),
+        "velocity": np.asarray(data.joint_velocities()),
+        "torque": np.asarray(data.controls),
+    }
+    lo, hi = np.asarray(limits.position_lower), np.asarray(limits.position_upper)
+    mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo) * scale.factors("position")
+    bounds = {
+        "position": (mid - half, mid + half),
+        "velocity": (
+            -np.asarray(limits.velocity_max) * scale.factors("velocity"),
+            np.asarray(limits.velocity_max) * scale.factors("velocity"),
+        ),
+        "torque": (
+            -np.asarray(limits.torque_max) * scale.factors("torque"),
+            np.asarray(limits.torque_max) * scale.factors("torque"),
+        ),
+    }
+    columns = _columns(joints)
+    dependent = configuration_limits(values["position"])
+    fig = Figure(figsize=(2.6 * len(columns) + 1, 7), layout="constrained")
+    axes = fig.subplots(3, len(columns), sharex=True, squeeze=False)
+    for col, group in enumerate(columns):
+        for row, kind in enumerate(JOINT_KINDS):
+            ax: Axes = axes[row, col]
+            for n, joint in enumerate(group):
+                j = JOINT_INDEX[joint]
+                style = "-" if n == 0 else ":"
+                if kind == "torque":
+                    series = values[kind][:, j]
+                    t = times[: len(series) + 1]
+                    ax.step(t, np.append(series, series[-1])[: len(t)], where="post", linestyle=style, label=joint)
+                else:
+                    ax.plot(times, values[kind][:, j], style, label=joint)
+            j0 = JOINT_INDEX[group[0]]
+            for bound in bounds[kind]:
+                ax.axhline(bound[j0], color="k", linestyle="--", linewidth=1)
+            if group[0] in dependent and kind in dependent[group[0]]:
+                limit = dependent[group[0]][kind] * scale.factors(kind)[j0]
+                for sign in (-1, 1):
+                    ax.plot(
+                        times,
+                        sign * limit,
+                        color="0.45",
+                        linestyle="-.",
+                        linewidth=1,
+                        label="config.-dependent" if sign > 0 else None,
+                    )
+            ax.grid(alpha=0.3)
+            if col == 0:
+                ax.set_ylabel(f"{kind} [{_UNITS[kind]}]")
+            if row == 0:
+                ax.set_title(side_free_name(group[0]))
+                ax.legend(fontsize=7, loc="best")
+            if row == len(JOINT_KINDS) - 1:
+                ax.set_xlabel("time [s]")
+    fig.suptitle(
+        f"{data.motion.get('name', '')}: joint space against the limits (dashed; dash-dotted: configuration-dependent)"
+    )
+    fig.savefig(path, dpi=100)
+    return path

@@ -1,0 +1,177 @@
+"""Box-FDDP solves of the jump and the hardware-experiment motions: convergence and physical consistency.
+
+Cheap variants only (CI budget): the paper's 1 cm vertical jump shortened to 0.6 s (10 ms knots), and
+one_leg_balancing / static_stepping with shortened phases and 50 ms knots. Full-length and expensive motions are in
+bench/planner.py. Tolerances as in test_problem.py (CoP 1 mm beyond the 50 % rectangle, friction + 1 N).
+"""
+
+from __future__ import annotations
+
+import crocoddyl  # noqa: F401  (before pinocchio, design/crocoddyl_wheels.md)
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from rh5_msgs_py.names import JOINT_NAMES
+from rh5_planner.motions import VERIFIED_MOTIONS, get_motion
+from rh5_planner.problem import (
+    FOOT_SIZE_M,
+    PlanResult,
+    SolverSettings,
+    build_robot,
+    limit_factors,
+    load_cost_config,
+    motion_config,
+    solve,
+)
+
+CONFIG = load_cost_config()
+MU = CONFIG["contact_stability"]["mu"]
+COP_HALF = 0.5 * CONFIG["contact_stability"]["cop_fraction"] * np.array(FOOT_SIZE_M) + 1e-3
+
+JUMP = get_motion("vertical_jump_1cm", {"total_time_s": 0.6})  # the paper's 0.9 s in the bench
+SHORT_PHASES = [["hold", 0.1], ["shift_left", 0.8], ["lift", 0.5], ["lower", 0.5], ["center", 0.6]]
+BALANCING = get_motion("one_leg_balancing", {"phases": SHORT_PHASES, "dt": 0.05})
+STEPPING = get_motion("static_stepping", {"phases": SHORT_PHASES, "dt": 0.05})
+
+
+@pytest.fixture(scope="module")
+def jump() -> PlanResult:
+    return solve(JUMP, SolverSettings(max_iterations=200))
+
+
+@pytest.fixture(scope="module")
+def balancing() -> PlanResult:
+    return solve(BALANCING, SolverSettings(max_iterations=150))
+
+
+@pytest.fixture(scope="module")
+def stepping() -> PlanResult:
+    return solve(STEPPING, SolverSettings(max_iterations=150))
+
+
+@pytest.fixture(scope="module", params=["jump", "balancing", "stepping"])
+def plan(request: pytest.FixtureRequest) -> PlanResult:
+    return request.getfixturevalue(request.param)
+
+
+def _sole_positions(plan: PlanResult) -> np.ndarray:
+    """(N, 2, 3) world positions of the (left, right) soles at every knot."""
+    model = plan.robot.model
+    data = model.createData()
+    out = []
+    for x in plan.xs:
+        pin.framesForwardKinematics(model, data, x[: model.nq])
+        out.append([data.oMf[fid].translation.copy() for fid in plan.robot.foot_ids.values()])
+    return np.array(out)
+
+
+def test_verified(plan: PlanResult) -> None:
+    assert plan.motion.name in VERIFIED_MOTIONS
+    log = plan.solver_log
+    assert log["converged"], log
+    assert log["stop_reason"] in ("gradient", "cost_stalled")
+    assert log["iterations"] < 150
+
+
+def test_cop_and_friction(plan: PlanResult) -> None:
+    contact = plan.contact_phases
+    cop = plan.cop[contact]
+    inside = (np.abs(cop[:, 0]) <= COP_HALF[0]) & (np.abs(cop[:, 1]) <= COP_HALF[1])
+    assert inside.mean() >= 0.99
+    w = plan.wrenches[contact]
+    assert (w[:, 2] > 0).all()
+    assert (np.linalg.norm(w[:, :2], axis=1) <= MU * w[:, 2] + 1.0).all()
+
+
+def test_limits_hold(plan: PlanResult) -> None:
+    robot, nq = plan.robot, plan.robot.model.nq
+    assert (np.abs(plan.us) <= robot.tau_max + 1e-9).all()
+    q, v = plan.xs[:, 7:nq], plan.xs[:, nq + 6 :]
+    assert (q >= robot.q_lower - 1e-9).all()
+    assert (q <= robot.q_upper + 1e-9).all()
+    assert (np.abs(v) <= robot.v_max + 1e-9).all()
+
+
+def test_newton_law_and_flight(plan: PlanResult) -> None:
+    """Sum of contact forces = m (a_CoM - g) over every interval without an impact; zero without contact, so in
+    flight the CoM falls at g."""
+    model, robot = plan.robot.model, plan.robot
+    data = model.createData()
+    nq = model.nq
+    assert np.all(plan.wrenches[~plan.contact_phases] == 0.0)
+    impacts = {i for i in range(1, len(plan.times)) if plan.contact_phases[i].sum() > plan.contact_phases[i - 1].sum()}
+    for k in range(len(plan.times) - 1):
+        if k + 1 in impacts:
+            continue
+        x0, x1 = plan.xs[k], plan.xs[k + 1]
+        a = (x1[nq:] - x0[nq:]) / (plan.times[k + 1] - plan.times[k])
+        pin.centerOfMass(model, data, x0[:nq], x0[nq:], a)
+        pin.framesForwardKinematics(model, data, x0[:nq])
+        force = sum(data.oMf[fid].rotation @ plan.wrenches[k, i, :3] for i, fid in enumerate(robot.foot_ids.values()))
+        np.testing.assert_allclose(force, robot.mass * (data.acom[0] - model.gravity.linear), atol=1e-5 * robot.mass)
+
+
+def test_feet_stay_in_contact(plan: PlanResult) -> None:
+    soles = _sole_positions(plan)
+    for side in range(2):
+        contact = plan.contact_phases[:, side]
+        starts = np.flatnonzero(contact & ~np.r_[False, contact[:-1]])
+        for start in starts:
+            end = start + int(np.argmin(contact[start:])) if not contact[start:].all() else len(contact)
+            drift = np.linalg.norm(soles[start:end, side] - soles[start, side], axis=1).max()
+            assert drift < 3e-3, (side, start, drift)
+
+
+def test_jump_reaches_its_height(jump: PlanResult) -> None:
+    soles = _sole_positions(jump)
+    flight = ~jump.contact_phases.any(axis=1)
+    assert flight.sum() == JUMP.flight_knots
+    clearance = soles[flight, :, 2].max() - soles[0, :, 2].max()
+    assert clearance == pytest.approx(JUMP.height_m, abs=0.003)  # measured 0.009 of 0.01
+    # the horizontal momentum stays ~0 (vertical jump): the CoM lands where it took off
+    assert np.abs(jump.com[-1, :2] - jump.com[0, :2]).max() < 0.01
+
+
+def test_balancing_lifts_the_right_foot_over_the_left(balancing: PlanResult, stepping: PlanResult) -> None:
+    for plan, step in ((balancing, 0.0), (stepping, STEPPING.step_length_m)):
+        soles = _sole_positions(plan)
+        single = plan.contact_phases[:, 0] & ~plan.contact_phases[:, 1]
+        assert single.any()
+        assert (soles[single, 1, 2] - soles[0, 1, 2]).max() == pytest.approx(plan.motion.lift_height_m, abs=0.01)
+        # in single support the CoM is over the left sole's CoP rectangle
+        offset = np.abs(plan.com[single, :2] - soles[single, 0, :2])
+        assert (offset <= COP_HALF).all()
+        assert soles[-1, 1, 0] - soles[0, 1, 0] == pytest.approx(step, abs=0.01)
+        assert np.abs(soles[:, 0] - soles[0, 0]).max() < 3e-3  # the left foot never moves
+
+
+def test_limit_scale_scales_the_planning_limits() -> None:
+    nominal = build_robot()
+    scaled = build_robot(limit_scale={"knee:velocity": 3.0, "LL*:torque": 2.0, "BodyPitch:position": 1.5})
+    ratio_v, ratio_t = scaled.v_max / nominal.v_max, scaled.tau_max / nominal.tau_max
+    assert sorted(np.round(ratio_v, 9)) == [1.0] * 30 + [3.0, 3.0]
+    assert np.count_nonzero(ratio_t == 2.0) == 6
+    assert np.count_nonzero(ratio_t == 1.0) == 26
+    width = (scaled.q_upper - scaled.q_lower) / (nominal.q_upper - nominal.q_lower)
+    assert np.count_nonzero(np.isclose(width, 1.5)) == 1
+    np.testing.assert_allclose(scaled.q_upper + scaled.q_lower, nominal.q_upper + nominal.q_lower)
+
+    class Factors:  # the LimitFactors protocol (what rh5_planner.limit_analysis.LimitScale provides)
+        def factors(self, kind: str) -> np.ndarray:
+            out = np.ones(len(JOINT_NAMES))
+            if kind == "velocity":
+                out[JOINT_NAMES.index("LRKnee")] = 2.0
+            return out
+
+    assert limit_factors(Factors())["velocity"][JOINT_NAMES.index("LRKnee")] == 2.0
+    for bad in ({"knee:speed": 2.0}, {"nosuchjoint:velocity": 2.0}, {"knee:velocity": 0.0}):
+        with pytest.raises(ValueError, match=r"PATTERN:KIND|matches no joint|positive"):
+            limit_factors(bad)
+
+
+def test_motion_overrides_merge() -> None:
+    merged = motion_config("vertical_jump_1cm", CONFIG)
+    assert merged["joint_limits"]["weight"] == CONFIG["motion_overrides"]["vertical_jump_1cm"]["joint_limits"]["weight"]
+    assert merged["joint_limits"]["position_beta"] == CONFIG["joint_limits"]["position_beta"]
+    assert motion_config("walk_with_5kg_weights", CONFIG)["joint_limits"] == CONFIG["joint_limits"]
