@@ -95,7 +95,7 @@ def test_without_crane_or_boards_the_robot_falls() -> None:
 
 def test_released_robot_stands_on_its_boards() -> None:
     """Boards in position mode at the standing pose, crane released after 0.2 s: over 2.5 simulated seconds
-    the base moves less than 3 mm, and the feet carry m g within 3 % (mean of the last 0.5 s), both feet.
+    the base moves less than 6 mm, and the feet carry m g within 3 % (mean of the last 0.5 s), both feet.
     The robot rocks from foot to foot by micrometres (a rigid biped on rigid ground is statically
     indeterminate), so each foot's share is checked on average."""
     coupled = build_physics()
@@ -113,7 +113,7 @@ def test_released_robot_stands_on_its_boards() -> None:
                 wrenches = world.foot_wrenches()
                 vertical.append(sum(w.force_world[2] for w in wrenches.values()))
                 per_foot.append([wrenches[s].force_world[2] for s in ("left", "right")])
-        assert drift < 3e-3
+        assert drift < 6e-3
         assert np.mean(vertical) == pytest.approx(world.weight, rel=0.03)
         share = np.mean(per_foot, axis=0) / world.weight
         assert share.min() > 0.1, share  # on both feet, on average (it rocks: rigid soles on rigid ground)
@@ -127,17 +127,18 @@ def test_hand_payload_adds_mass_at_both_hands() -> None:
         assert loaded.total_mass == pytest.approx(bare.total_mass + 10.0)
 
 
-def test_physics_time_follows_board_time_in_1_ms_steps(standing: PhysicsActuatorBank) -> None:
-    """Board cycles of any length (the emulator's catch-up splits a stall into calls of at most 1 ms) step
-    the physics in whole 1 ms steps, carrying the remainder."""
+def test_physics_time_follows_board_time_in_half_ms_steps(standing: PhysicsActuatorBank) -> None:
+    """Board cycles of any length step the physics (and the boards' cascade between) in whole 0.5 ms steps,
+    carrying the remainder; a call shorter than a step runs the boards only."""
     world, before = standing.world, standing.world.steps
-    for _ in range(4):
-        standing.step(0.5e-3, OFF)  # two half cycles make one physics step
-    assert world.steps - before == 2
-    standing.step(1.4e-3, OFF)  # one step, 0.4 ms carried
-    standing.step(0.5e-3, OFF)  # 0.9 ms rounds to one more step
+    for _ in range(2):
+        standing.step(1e-3, OFF)  # a board cycle is two physics steps
     assert world.steps - before == 4
-    assert world.time == pytest.approx(world.steps * 1e-3)
+    standing.step(0.2e-3, OFF)  # less than a step: carried
+    assert world.steps - before == 4
+    standing.step(1.2e-3, OFF)  # 1.4 ms: three steps, -0.1 ms carried
+    assert world.steps - before == 7
+    assert world.time == pytest.approx(world.steps * 0.5e-3)
 
 
 # ----------------------------------------------------------------------------------------------------------------

@@ -185,19 +185,25 @@ class StabilizerCore:
     def _hold_at(self, reference: ReferenceSample) -> ReferenceSample:
         return ReferenceSample(reference.position, np.zeros(NUM_JOINTS), reference.effort)
 
-    def update(self, now_ns: int, period_ns: int, measurement: Measurement | None) -> Command | None:
-        """Advance one tick; return the command to publish (None when idle or stopped)."""
+    def update(
+        self, now_ns: int, period_ns: int, measurement: Measurement | None, playback_ns: int | None = None
+    ) -> Command | None:
+        """Advance one tick; return the command to publish (None when idle or stopped).
+
+        ``now_ns`` (monotonic) judges the age of ``measurement``; ``playback_ns`` (default ``now_ns``) is the
+        clock the ramp-in and the trajectory are played on: a simulation's time when it runs slower than real time.
+        """
         del period_ns  # the references are sampled at absolute time; the period is implicit
         with self._lock:
-            return self._update(now_ns, measurement)
+            return self._update(now_ns, measurement, now_ns if playback_ns is None else playback_ns)
 
-    def _update(self, now_ns: int, measurement: Measurement | None) -> Command | None:
+    def _update(self, now_ns: int, measurement: Measurement | None, play_ns: int) -> Command | None:
         if self.estopped and self.state in ACTIVE_STATES:
-            self._enter(State.STOPPED, now_ns, "emergency stop")
+            self._enter(State.STOPPED, play_ns, "emergency stop")
         if self._stop_request:
             self._stop_request = False
             if self.state in ACTIVE_STATES:
-                self._enter(State.STOPPED, now_ns, "stop requested")
+                self._enter(State.STOPPED, play_ns, "stop requested")
         if self.state == State.STOPPED or (self.state == State.IDLE and not self._pending_start):
             self._pending_start = False
             return None
@@ -211,7 +217,7 @@ class StabilizerCore:
                 self._ramp = RampIn(
                     measurement.position.copy(), first.position, self.ramp_max_velocity, self.ramp_max_acceleration
                 )
-                self._enter(State.RAMP_IN, now_ns, f"ramp-in over {self._ramp.duration:.2f} s")
+                self._enter(State.RAMP_IN, play_ns, f"ramp-in over {self._ramp.duration:.2f} s")
         if stale:
             if self._last_command is None:
                 return None
@@ -220,9 +226,9 @@ class StabilizerCore:
                 self._hold = ReferenceSample(
                     self._last_command.position, np.zeros(NUM_JOINTS), self._last_command.effort
                 )
-                self._enter(State.HOLDING, now_ns, f"joint_states stale ({age})")
+                self._enter(State.HOLDING, play_ns, f"joint_states stale ({age})")
             return Command(self._last_command.position, np.zeros(NUM_JOINTS), self._last_command.effort)
-        reference = self._reference(now_ns)
+        reference = self._reference(play_ns)
         if self.correction is not None:
             reference = self.correction(reference)
         self.tracking_error = reference.position - measurement.position
@@ -234,7 +240,7 @@ class StabilizerCore:
             self._hold = self._hold_at(ReferenceSample(measurement.position, np.zeros(NUM_JOINTS), reference.effort))
             self._enter(
                 State.HOLDING,
-                now_ns,
+                play_ns,
                 f"tracking error of {JOINT_NAMES[worst]} {self.tracking_error[worst]:+.3f} rad "
                 f"exceeds {self.safety.max_tracking_error} rad",
             )

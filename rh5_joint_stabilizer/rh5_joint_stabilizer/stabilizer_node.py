@@ -78,6 +78,7 @@ class StabilizerNode(SuiteNode):
         )
         self.measurement: LatestValue[Measurement] = LatestValue()
         self._reported_state = self.core.state
+        self._ros_playback = params["playback_clock"] == "ros"
         self.tracking = TrackingWindow()
         self._state_codec = JointStateCodec(JOINT_NAMES, what="joint_states")
         self._command_codec = JointStateCodec(JOINT_NAMES)
@@ -187,7 +188,8 @@ class StabilizerNode(SuiteNode):
 
     def _tick(self, now_ns: int, period_ns: int) -> None:
         measurement, _, _ = self.measurement.try_get()
-        command = self.core.update(now_ns, period_ns, measurement)
+        playback_ns = self.get_clock().now().nanoseconds if self._ros_playback else None
+        command = self.core.update(now_ns, period_ns, measurement, playback_ns)
         if self.core.state is not self._reported_state:
             # a transition is published at once: recordings then know when playback started to the millisecond
             self._reported_state = self.core.state
@@ -215,7 +217,8 @@ class StabilizerNode(SuiteNode):
         if self.loop.error is not None:
             level, values["loop_error"] = Level.ERROR, repr(self.loop.error)
         status = Status("rh5/stabilizer", level, self.core.last_reason or self.core.state.value, values, "rh5")
-        self._publish_diagnostics(diagnostics_to_msg([status], stamp_ns=self.get_clock().now().nanoseconds))
+        # wall time, also under use_sim_time: every stamp of the suite is on one clock (/clock maps it to sim time)
+        self._publish_diagnostics(diagnostics_to_msg([status], stamp_ns=time.time_ns()))
 
     def summary(self) -> dict[str, Any]:
         """Adds the state, the loop timing and the recent events to the base summary."""

@@ -61,7 +61,8 @@ ACTUATOR_STATES: Final = Topic("actuator_states", "sensor_msgs/msg/JointState", 
 SIM_BASE_POSE: Final = Topic("sim/base_pose", "geometry_msgs/msg/PoseStamped", STREAM_QOS)
 SIM_WRENCH_LEFT: Final = Topic("sim/wrench/left_foot", "geometry_msgs/msg/WrenchStamped", STREAM_QOS)
 SIM_WRENCH_RIGHT: Final = Topic("sim/wrench/right_foot", "geometry_msgs/msg/WrenchStamped", STREAM_QOS)
-CLOCK: Final = Topic("/clock", "rosgraph_msgs/msg/Clock", STREAM_QOS)  # sim time, only when asked for
+CLOCK: Final = Topic("/clock", "rosgraph_msgs/msg/Clock", STREAM_QOS)
+"""Simulated time, published by the physics simulation when it runs slower than real time (publish_clock)."""
 DRIVER_ESTOP: Final = Topic("driver/estopped", "std_msgs/msg/Bool", LATCHED_QOS)
 """The driver's emergency-stop latch, published on every change (the stabilizer stops while it is set)."""
 DIAGNOSTICS: Final = Topic("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", EVENT_QOS)
@@ -82,6 +83,7 @@ ALL_TOPICS: Final[tuple[Topic, ...]] = (
     SIM_WRENCH_RIGHT,
     DRIVER_ESTOP,
     DIAGNOSTICS,
+    CLOCK,
 )
 """Every topic the suite publishes: what the recorder records by default."""
 
