@@ -366,3 +366,20 @@ def test_cli_extra_joints_and_bad_input(walk_bag: Path, tmp_path: Path, capsys: 
         load_recording(tmp_path / "missing")
     with pytest.raises(ReportError, match="unknown joint"):
         write_report(walk_bag, tmp_path / "x", ["Nope"])
+
+
+def test_clock_moves_every_time_axis_onto_simulated_time() -> None:
+    """A simulation at half real time: 2 s of recorder time after the first /clock message are 1 s simulated."""
+    from rh5_bringup.report.load import DiagnosticRecord, PoseSeries, Recording, on_simulated_time
+
+    t = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
+    pose = PoseSeries("/sim/base_pose", t, np.zeros((5, 3)), np.tile([0.0, 0.0, 0.0, 1.0], (5, 1)), "header")
+    rec = Recording(Path("bag"), 0, 4.0, {}, base_pose=pose)
+    rec.diagnostics.append(DiagnosticRecord(3.0, "rh5/stabilizer", 0, "playing", {"state": "playing"}))
+    clock_t = np.array([1.0, 2.0, 3.0])  # receive times of three /clock messages [s]
+    clock_ns = np.array([10_000_000_000, 10_500_000_000, 11_000_000_000])  # 0.5 s simulated per second
+    moved = on_simulated_time(rec, clock_t, clock_ns)
+    np.testing.assert_allclose(moved.base_pose.t, [0.0, 1.0, 1.5, 2.0, 3.0])  # before/after: wall rate
+    assert moved.diagnostics[0].t == pytest.approx(2.0)
+    assert moved.duration_s == pytest.approx(3.0)
+    assert "0.50 x real time" in moved.notes[-1]

@@ -10,7 +10,7 @@ in batches by rh5_bringup.report.cdr; the few other messages go through rosbags'
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Final
 
@@ -333,6 +333,7 @@ _OBJECT_TOPICS: Final = {
     "planned_base": interfaces.PLANNED_BASE_TRAJECTORY,
     "diagnostics": interfaces.DIAGNOSTICS,
     "estopped": interfaces.DRIVER_ESTOP,
+    "clock": interfaces.CLOCK,
 }
 
 
@@ -386,6 +387,8 @@ def _read(reader: AnyReader, bag: Path) -> Recording:
         route.update({c.id: ("object", key) for c in find_connections(reader.connections, topic)})
     estop_t: list[int] = []
     estop_v: list[bool] = []
+    clock_log: list[int] = []
+    clock_sim: list[int] = []
     wanted = [c for c in reader.connections if c.id in route]
     names: dict[str, str] = {}
     for connection, log_ns, raw in reader.messages(connections=wanted):
@@ -404,6 +407,9 @@ def _read(reader: AnyReader, bag: Path) -> Recording:
                 rec.planned_base.append(_planned_base(msg, t))
             elif key == "diagnostics":
                 rec.diagnostics.extend(_diagnostics(msg, log_ns, origin))
+            elif key == "clock":
+                clock_log.append(log_ns)
+                clock_sim.append(msg.clock.sec * 1_000_000_000 + msg.clock.nanosec)
             else:
                 estop_t.append(log_ns)
                 estop_v.append(bool(msg.data))
@@ -421,4 +427,50 @@ def _read(reader: AnyReader, bag: Path) -> Recording:
     if estop_t:
         rec.estopped = BoolSeries(names["estopped"], _seconds(np.asarray(estop_t), origin), np.asarray(estop_v))
     rec.diagnostics.sort(key=lambda d: d.t)
+    if len(clock_log) >= 2:
+        return on_simulated_time(rec, _seconds(np.asarray(clock_log), origin), np.asarray(clock_sim, dtype=np.int64))
     return rec
+
+
+def on_simulated_time(rec: Recording, clock_t: FloatArray, clock_ns: NDArray[np.int64]) -> Recording:
+    """``rec`` with every time axis moved from the recorder's clock onto the simulation's (/clock).
+
+    A simulation slower than real time plays the plan on its own clock (the stabilizer follows /clock), so
+    plan and measurement only line up there. Each /clock message maps its receive time to the simulated time;
+    times in between are interpolated, times before the first and after the last move at the wall clock's
+    rate. The bag's start keeps time 0 (the simulated time is offset to the first clock message's receive time).
+    """
+    sim = (clock_ns - clock_ns[0]) / 1e9 + clock_t[0]
+
+    def remap(t: FloatArray) -> FloatArray:
+        t = np.asarray(t, dtype=np.float64)
+        out = np.interp(t, clock_t, sim)
+        before, after = t < clock_t[0], t > clock_t[-1]
+        out[before] = t[before]
+        out[after] = sim[-1] + (t[after] - clock_t[-1])
+        return out
+
+    def at(t: float) -> float:
+        return float(remap(np.array([t]))[0])
+
+    out = replace(
+        rec,
+        duration_s=at(rec.duration_s),
+        planned_joints=[replace(p, t=at(p.t)) for p in rec.planned_joints],
+        planned_base=[replace(p, t=at(p.t)) for p in rec.planned_base],
+        diagnostics=[replace(d, t=at(d.t)) for d in rec.diagnostics],
+        notes=[
+            *rec.notes,
+            f"times are simulated time (/clock, {len(clock_t)} messages): the simulation ran at "
+            f"{(sim[-1] - sim[0]) / max(clock_t[-1] - clock_t[0], 1e-9):.2f} x real time",
+        ],
+    )
+    for key in ("joint_commands", "joint_states", "actuator_commands", "actuator_states", "base_pose"):
+        series = getattr(rec, key)
+        if series is not None:
+            setattr(out, key, replace(series, t=remap(series.t)))
+    for key in ("wrench_left", "wrench_right", "estopped"):
+        series = getattr(rec, key)
+        if series is not None:
+            setattr(out, key, replace(series, t=remap(series.t)))
+    return out
