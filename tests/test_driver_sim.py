@@ -196,8 +196,16 @@ class CommandSource:
         self.bad = False
         self._t0 = time.monotonic_ns()
         self._publisher = node.create_publisher(JointState, interfaces.ACTUATOR_COMMANDS.name, interfaces.STREAM_QOS)
-        node.create_subscription(JointState, interfaces.ACTUATOR_STATES.name, self._on_states, interfaces.STREAM_QOS)
+        self._subscription = node.create_subscription(
+            JointState, interfaces.ACTUATOR_STATES.name, self._on_states, interfaces.STREAM_QOS
+        )
         self.loop = DeadlineLoop(1000.0, self._publish, "test-commands")
+
+    def close(self) -> None:
+        """Stop publishing and leave the session's shared observer node as it was (later tests reuse it)."""
+        self.loop.stop()
+        self.node.destroy_subscription(self._subscription)
+        self.node.destroy_publisher(self._publisher)
 
     def reference(self, now_ns: int) -> tuple[np.ndarray, np.ndarray]:
         w, t = np.pi, (now_ns - self._t0) / 1e9
@@ -232,15 +240,17 @@ def test_driver_node_and_sim_node_through_ros(
     port, _ = boards
     statuses: list[Any] = []
     latch: list[bool] = []
-    ros_graph.create_subscription(
-        DiagnosticArray,
-        "/diagnostics",
-        lambda m: statuses.extend(s for s in diagnostics_from_msg(m) if s.name == "rh5/driver"),
-        interfaces.EVENT_QOS,
-    )
-    ros_graph.create_subscription(
-        Bool, interfaces.DRIVER_ESTOP.name, lambda m: latch.append(m.data), interfaces.LATCHED_QOS
-    )
+    subscriptions = [
+        ros_graph.create_subscription(
+            DiagnosticArray,
+            "/diagnostics",
+            lambda m: statuses.extend(s for s in diagnostics_from_msg(m) if s.name == "rh5/driver"),
+            interfaces.EVENT_QOS,
+        ),
+        ros_graph.create_subscription(
+            Bool, interfaces.DRIVER_ESTOP.name, lambda m: latch.append(m.data), interfaces.LATCHED_QOS
+        ),
+    ]
     source = CommandSource(ros_graph)
     # 50 ms silence timeout: the 5 ms rule has its timing test above; here the boards share two cores with
     # this process's 1 kHz publisher, and a stall of the emulator would stop the test, not the point of it.
@@ -270,7 +280,9 @@ def test_driver_node_and_sim_node_through_ros(
             ok, message = call_trigger(ros_graph, "/driver/estop")
             source.spin_for(1.3)
     finally:
-        source.loop.stop()
+        source.close()
+        for subscription in subscriptions:
+            ros_graph.destroy_subscription(subscription)
     summary = run.processes[0].summary()
     assert run.processes[0].process.returncode == 0
     assert (ok, message) == (True, "emergency stop latched; boards hold")

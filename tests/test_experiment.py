@@ -53,10 +53,11 @@ def test_bag_holds_the_suite_streams(experiment: tuple[subprocess.CompletedProce
         counts = {c.topic: c.msgcount for c in reader.connections}
         assert reader.duration > 2.3e9  # at least the motion itself
     seconds = 2.3
-    for topic in ("joint_states", "joint_commands", "actuator_states", "actuator_commands"):
+    for topic in ("/joint_states", "/joint_commands", "/actuator_states", "/actuator_commands"):
         assert counts.get(topic, 0) > 0.5 * 1000 * seconds, (topic, counts)
-    assert counts.get("sim/base_pose", 0) > 50 * seconds, counts
-    assert counts.get("planned_trajectory") == 1, counts
+    assert counts.get("/sim/base_pose", 0) > 50 * seconds, counts
+    assert counts.get("/clock", 0) > 50 * seconds, counts  # the simulation runs on its own, slower clock
+    assert counts.get("/planned_trajectory", 0) >= 1, counts
 
 
 def test_report_is_written_and_rewritten(experiment: tuple[subprocess.CompletedProcess[str], Path]) -> None:
