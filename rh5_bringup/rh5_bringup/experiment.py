@@ -163,6 +163,8 @@ class _Monitor:
 
         self.state = "unknown"
         self.reason = ""
+        self.trajectory_duration_s: float | None = None
+        self.rejected = ""
         self.base_z: float | None = None
         self._from_msg = diagnostics_from_msg
         topic = interfaces.DIAGNOSTICS
@@ -175,6 +177,11 @@ class _Monitor:
             if status.name == "rh5/stabilizer":
                 self.state = str(status.values.get("state", self.state))
                 self.reason = str(status.values.get("reason", ""))
+                self.rejected = str(status.values.get("trajectory_rejected", ""))
+                try:
+                    self.trajectory_duration_s = float(status.values.get("trajectory_duration_s", "none"))
+                except ValueError:
+                    self.trajectory_duration_s = None
 
     def _on_pose(self, msg: Any) -> None:
         self.base_z = float(msg.pose.position.z)
@@ -195,12 +202,28 @@ def _call(session: SuiteSession, node: str, service: str, progress: Callable[[st
     return message
 
 
+def _await_trajectory(session: SuiteSession, monitor: _Monitor, duration_s: float, timeout_s: float = 10.0) -> None:
+    """Wait until the stabilizer holds the motion's trajectory (its status says so); raise with its reason if it
+    rejected it. Without this a start could play whatever trajectory the stabilizer had before."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline and not session.stop_requested:
+        session.sleep(0.1)
+        if monitor.rejected:
+            msg = f"the stabilizer rejected the trajectory: {monitor.rejected}"
+            raise ExperimentError(msg)
+        if monitor.trajectory_duration_s is not None and abs(monitor.trajectory_duration_s - duration_s) < 2e-3:
+            return
+    msg = f"the stabilizer did not report the {duration_s:.3f} s trajectory within {timeout_s:.0f} s"
+    raise ExperimentError(msg)
+
+
 def _play(
     session: SuiteSession, settings: ExperimentSettings, duration_s: float, progress: Callable[[str], None]
 ) -> tuple[str, bool]:
     """Run the motion through the started suite; return (outcome, fell)."""
     monitor = _Monitor(session.node)
     _call(session, "planner", "load", progress)
+    _await_trajectory(session, monitor, duration_s)
     _call(session, "driver", "enable", progress, value=True)
     session.sleep(SETTLE_AFTER_ENABLE_S)
     standing_z: float | None = None

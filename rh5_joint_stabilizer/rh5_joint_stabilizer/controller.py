@@ -115,6 +115,8 @@ class StabilizerCore:
         self._lock = threading.Lock()
         self.state = State.IDLE
         self.trajectory: PlannedTrajectory | None = None
+        self.rejection = ""
+        """Why the last trajectory offered was rejected (empty after one is accepted)."""
         self.estopped = False
         self.last_reason = ""
         self._ramp: RampIn | None = None
@@ -134,8 +136,17 @@ class StabilizerCore:
             if self.state in (State.RAMP_IN, State.PLAYING):
                 return False, f"refused: a trajectory is {self.state.value.replace('_', ' ')}; call ~/hold first"
             self.trajectory = trajectory
+            self.rejection = ""
         self._on_event(f"trajectory loaded: {len(trajectory.times)} points, {trajectory.duration:.3f} s")
         return True, "trajectory loaded"
+
+    def reject(self, reason: str) -> None:
+        """A new trajectory was rejected: drop the previous one too (unless it is being played), so that a start
+        cannot play a trajectory other than the one last sent; the refusal then names the reason."""
+        with self._lock:
+            self.rejection = reason
+            if self.state not in (State.RAMP_IN, State.PLAYING):
+                self.trajectory = None
 
     def request_start(self, measurement: Measurement | None) -> tuple[bool, str]:
         """Ramp in from the measured pose and play; refused without trajectory, at motion, under estop."""
@@ -143,7 +154,8 @@ class StabilizerCore:
             if self.estopped:
                 return False, "refused: emergency stop is latched in the driver"
             if self.trajectory is None:
-                return False, "refused: no trajectory (publish planned_trajectory or set trajectory_file)"
+                why = f"; the last one was rejected: {self.rejection}" if self.rejection else ""
+                return False, f"refused: no trajectory (publish planned_trajectory or set trajectory_file){why}"
             if self.state in (State.RAMP_IN, State.PLAYING):
                 return False, f"refused: already {self.state.value}"
             if measurement is None:

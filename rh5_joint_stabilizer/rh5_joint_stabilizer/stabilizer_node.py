@@ -123,6 +123,7 @@ class StabilizerNode(SuiteNode):
             )
         except (OSError, TrajectoryFileError, TrajectoryRejectedError) as err:
             self.get_logger().error(f"trajectory file {path} rejected: {err}")
+            self.core.reject(f"trajectory file {path}: {err}")
             return
         self._accept(trajectory, path)
 
@@ -148,6 +149,7 @@ class StabilizerNode(SuiteNode):
         except (ValueError, TrajectoryRejectedError) as err:
             self.get_logger().error(f"planned_trajectory rejected: {err}")
             self.events.append(f"trajectory rejected: {err}")
+            self.core.reject(f"planned_trajectory: {err}")
             return
         self._accept(trajectory, "planned_trajectory")
 
@@ -205,7 +207,13 @@ class StabilizerNode(SuiteNode):
 
     def _publish_status(self) -> None:
         rms, peak = self.tracking.rms_and_max()
-        values: dict[str, object] = {"state": self.core.state.value, "reason": self.core.last_reason}
+        trajectory = self.core.trajectory
+        values: dict[str, object] = {
+            "state": self.core.state.value,
+            "reason": self.core.last_reason,
+            "trajectory_duration_s": round(trajectory.duration, 6) if trajectory is not None else "none",
+            "trajectory_rejected": self.core.rejection,
+        }
         values.update({f"loop.{k}": v for k, v in self.loop.stats().as_dict().items()})
         values.update({f"rms_error.{j}": round(float(e), 6) for j, e in zip(JOINT_NAMES, rms, strict=True)})
         values.update({f"max_error.{j}": round(float(e), 6) for j, e in zip(JOINT_NAMES, peak, strict=True)})

@@ -245,3 +245,15 @@ def test_hermite_sampling_hits_knots_and_reorders_names() -> None:
     np.testing.assert_allclose(traj.sample(0.5).position, q[1][::-1])
     np.testing.assert_allclose(traj.sample(2.0).position, q[2][::-1])
     assert traj.duration == 1.0
+
+
+def test_a_rejected_trajectory_drops_the_previous_one_so_start_cannot_play_it(bent_pose: np.ndarray) -> None:
+    core = make_core()
+    assert core.load(sine_trajectory(bent_pose))[0]
+    core.reject("planned_trajectory: jump of LLKnee between points 3 and 4")
+    ok, reason = core.request_start(Measurement(bent_pose, np.zeros(NUM_JOINTS), 0))
+    assert not ok
+    assert "no trajectory" in reason
+    assert "jump of LLKnee" in reason
+    assert core.load(sine_trajectory(bent_pose))[0]  # a good one clears the rejection
+    assert core.rejection == ""
