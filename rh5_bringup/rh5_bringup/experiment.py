@@ -137,10 +137,10 @@ def experiment_bringup(settings: ExperimentSettings, trajectory: Path, bag: Path
             hand_payload_kg=payload,
             publish_clock=True,
         )
-        # the physics runs slower than real time on a small machine: the stabilizer plays the motion on /clock;
-        # the simulated light joints keep a small residual ringing (sim.physics docstring: <= 0.09 rad/s RMS)
-        # It also stalls now and then for tens of ms (2 cores, every node a Python process, measured up to ~0.3 s):
-        # a stalled simulator is not a dead bus, so the staleness rules wait longer than on the robot's control PC.
+        # The physics runs slower than real time on a small machine, so the stabilizer plays the motion on /clock.
+        # The simulated light joints keep a small residual ringing (sim.physics docstring: <= 0.09 rad/s RMS), so
+        # "at rest" is looser. The simulation also stalls now and then for tens of ms (2 cores, every node a Python
+        # process): a stalled simulator is not a dead bus, so the staleness rules wait longer than on the robot.
         bringup = bringup.with_parameters(
             "stabilizer",
             use_sim_time=True,
