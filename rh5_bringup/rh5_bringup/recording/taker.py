@@ -14,31 +14,17 @@ import threading
 from collections.abc import Callable
 from typing import Any, Final
 
-from rclpy.callback_groups import CallbackGroup
 from rclpy.subscription import Subscription
 
-__all__ = ["DEFAULT_TAKE_PERIOD_S", "NeverExecutedGroup", "RawTaker"]
+from rh5_msgs_py.streams import NeverExecutedGroup
+
+__all__ = ["DEFAULT_TAKE_PERIOD_S", "RawTaker"]
 
 DEFAULT_TAKE_PERIOD_S: Final = 0.005
 """Take every 5 ms: 15 messages of three 1 kHz streams per pass, far below any history depth used."""
 
 Deliver = Callable[[int, bytes, dict[str, Any]], None]
 """Receives (key, serialized message, rmw message info) for every message taken."""
-
-
-class NeverExecutedGroup(CallbackGroup):
-    """A callback group executors never run nor wait on: its entities are served by their owner's thread."""
-
-    def can_execute(self, entity: Any) -> bool:  # noqa: ARG002 (the interface of CallbackGroup)
-        """Never: the executor leaves the entity out of its wait set."""
-        return False
-
-    def beginning_execution(self, entity: Any) -> bool:  # noqa: ARG002 (see can_execute)
-        """Never."""
-        return False
-
-    def ending_execution(self, entity: Any) -> None:
-        """Nothing began."""
 
 
 class RawTaker:
