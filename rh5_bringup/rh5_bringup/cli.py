@@ -99,30 +99,17 @@ def up(bringup: Bringup, duration_s: float | None, log_root: Path, start: bool =
     return 0 if not missing and all(code == 0 for code in exit_codes.values()) else 1
 
 
-def _parse_overrides(pairs: list[str]) -> dict[str, Any]:
-    """``key=value`` pairs, values parsed as YAML (numbers, lists, booleans); ValueError names a bad pair."""
-    import yaml  # noqa: PLC0415
-
-    overrides: dict[str, Any] = {}
-    for pair in pairs:
-        key, sep, value = pair.partition("=")
-        if not sep or not key:
-            msg = f"--set {pair!r}: expected key=value"
-            raise ValueError(msg)
-        overrides[key.strip()] = yaml.safe_load(value)
-    return overrides
-
-
 def experiment(args: argparse.Namespace) -> int:
     """``rh5 experiment``: plan or reuse, run on the simulated robot, record, report."""
     from rh5_bringup.experiment import ExperimentError, ExperimentSettings, run_experiment  # noqa: PLC0415
     from rh5_planner.motions import MotionError, get_motion  # noqa: PLC0415
+    from rh5_planner.plan_cli import UsageError, parse_overrides  # noqa: PLC0415
 
     try:
-        overrides = _parse_overrides(args.set)
+        overrides = parse_overrides(args.set)
         get_motion(args.motion, overrides)
         node_parameters: dict[str, dict[str, Any]] = {}
-        for dotted, value in _parse_overrides(args.param).items():
+        for dotted, value in parse_overrides(args.param).items():
             node, sep, key = dotted.partition(".")
             if not sep or not key:
                 msg = f"--param {dotted}: expected NODE.KEY=VALUE"
@@ -132,7 +119,7 @@ def experiment(args: argparse.Namespace) -> int:
         if set(node_parameters) - nodes:
             msg = f"--param: no nodes {sorted(set(node_parameters) - nodes)} in the bringup (have {sorted(nodes)})"
             raise ValueError(msg)
-    except (ValueError, KeyError, MotionError) as err:
+    except (ValueError, KeyError, MotionError, UsageError) as err:
         print(f"rh5 experiment: {err}", file=sys.stderr)
         return 2
     settings = ExperimentSettings(

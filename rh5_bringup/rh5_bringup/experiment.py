@@ -19,11 +19,14 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rh5_bringup.launcher import Bringup, load_bringup
 from rh5_bringup.session import SuiteSession, run_dir
 from rh5_msgs_py import interfaces
+
+if TYPE_CHECKING:
+    from rh5_msgs_py.trajectory_file import TrajectoryData
 
 DEFAULT_OUTPUT_ROOT = Path("out")
 SETTLE_AFTER_ENABLE_S = 0.5
@@ -119,12 +122,9 @@ def planned_trajectory(settings: ExperimentSettings, progress: Callable[[str], N
 # --- the suite ------------------------------------------------------------------------------------------------------
 
 
-def experiment_bringup(settings: ExperimentSettings, trajectory: Path, bag: Path) -> Bringup:
-    """The bringup of the experiment: physics (or kinematic) sim starting at the motion's first pose, the recorder
-    writing ``bag``, the planner loading ``trajectory``."""
-    from rh5_msgs_py.trajectory_file import load_trajectory  # noqa: PLC0415
-
-    data = load_trajectory(trajectory)
+def experiment_bringup(settings: ExperimentSettings, trajectory: Path, data: TrajectoryData, bag: Path) -> Bringup:
+    """The bringup of the experiment: physics (or kinematic) sim starting at the motion's first pose (``data``, the
+    content of ``trajectory``), the recorder writing ``bag``, the planner loading ``trajectory``."""
     bringup = load_bringup(settings.bringup).resolved(sim=settings.sim)
     bringup = bringup.with_parameters("recorder", output=str(bag))
     bringup = bringup.with_parameters("planner", trajectory_file=str(trajectory.resolve()))
@@ -266,10 +266,11 @@ def run_experiment(settings: ExperimentSettings, progress: Callable[[str], None]
     folder = run_dir(settings.output_root / "experiments", settings.motion)
     trajectory, cached = planned_trajectory(settings, progress)
     progress(f"trajectory: {trajectory} ({'cached' if cached else 'planned now'})")
-    duration_s = float(load_trajectory(trajectory).times[-1])
+    data = load_trajectory(trajectory)
+    duration_s = float(data.times[-1])
     result = ExperimentResult(folder, trajectory, folder / "bag")
     folder.mkdir(parents=True)
-    bringup = experiment_bringup(settings, trajectory, result.bag)
+    bringup = experiment_bringup(settings, trajectory, data, result.bag)
     with SuiteSession(bringup, folder / "logs", observer_name="rh5_experiment") as session:
         progress(f"experiment {settings.motion}: ROS_DOMAIN_ID={session.run.domain_id}, folder {folder}")
         missing = session.start()

@@ -33,6 +33,7 @@ from rh5_bringup.sim.physics import PhysicsActuatorBank, build_physics
 from rh5_bringup.transports import open_transport
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py import interfaces
+from rh5_msgs_py.conversions import to_time_msg, wrench_to_msg
 from rh5_msgs_py.names import ACTUATOR_NAMES, FOOT_FRAMES, NUM_JOINTS
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
 
@@ -131,33 +132,28 @@ class SimHardwareNode(SuiteNode):
     def _publish_ground_truth(self) -> None:
         """The true base pose (frame "world") and each foot's contact wrench (in and about its sole frame)."""
         assert self.physics is not None
-        from geometry_msgs.msg import PoseStamped, WrenchStamped  # noqa: PLC0415 - physics mode only
+        from geometry_msgs.msg import PoseStamped  # noqa: PLC0415 - physics mode only
 
         truth, _, _ = self.physics.ground_truth.try_get()  # taken by the boards thread: no lock, no PyBullet here
         if truth is None:
             return
         pose, wrenches = truth.base, truth.wrenches
-        stamp = self.get_clock().now().to_msg()
+        now_ns = self.get_clock().now().nanoseconds
         msg = PoseStamped()
-        msg.header.stamp, msg.header.frame_id = stamp, "world"
-        p, o = pose.position, pose.orientation
-        msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = float(p[0]), float(p[1]), float(p[2])
+        to_time_msg(now_ns, msg.header.stamp)
+        msg.header.frame_id = "world"
+        p, o = pose.position.tolist(), pose.orientation.tolist()
+        msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = p
         o_msg = msg.pose.orientation
-        o_msg.x, o_msg.y, o_msg.z, o_msg.w = float(o[0]), float(o[1]), float(o[2]), float(o[3])
+        o_msg.x, o_msg.y, o_msg.z, o_msg.w = o
         self._publish_pose(msg)
         for side, wrench in wrenches.items():
-            force, moment = wrench.in_sole_frame()
-            out = WrenchStamped()
-            out.header.stamp, out.header.frame_id = stamp, FOOT_FRAMES[side]
-            out.wrench.force.x, out.wrench.force.y, out.wrench.force.z = (float(v) for v in force)
-            out.wrench.torque.x, out.wrench.torque.y, out.wrench.torque.z = (float(v) for v in moment)
-            self._publish_wrench[side](out)
+            self._publish_wrench[side](wrench_to_msg(np.concatenate(wrench.in_sole_frame()), FOOT_FRAMES[side], now_ns))
         if self._publish_clock is not None:
             from rosgraph_msgs.msg import Clock  # noqa: PLC0415
 
             clock = Clock()  # the simulated time now (a step count is read atomically: no lock needed)
-            sim_now_ns = self.physics.world.steps * round(self.physics.world.time_step * 1e9)
-            clock.clock.sec, clock.clock.nanosec = divmod(sim_now_ns, 1_000_000_000)
+            to_time_msg(self.physics.world.steps * round(self.physics.world.time_step * 1e9), clock.clock)
             self._publish_clock(clock)
 
     def _update_faults(self, _changed: list[Any]) -> None:

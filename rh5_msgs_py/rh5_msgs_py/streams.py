@@ -85,26 +85,32 @@ class StreamThread:
         context = self.node.context
         try:
             while not self._stop.is_set() and context.ok():
-                entries = self._entries
-                with ExitStack() as stack:
-                    handles = [sub.handle for sub, _ in entries]
-                    for handle in handles:
-                        stack.enter_context(handle)  # keeps it alive while waited on (__enter__ returns None)
-                    stack.enter_context(self._wake.handle)
-                    stack.enter_context(context.handle)
-                    wait_set = _rclpy.WaitSet(len(handles), 1, 0, 0, 0, 0, context.handle)
-                    for handle in handles:
-                        wait_set.add_subscription(handle)
-                    wait_set.add_guard_condition(self._wake.handle)
-                    wait_set.wait(WAIT_TIMEOUT_NS)
-                    ready = set(wait_set.get_ready_entities("subscription"))
-                    for handle, (subscription, callback) in zip(handles, entries, strict=True):
-                        if handle.pointer not in ready:
-                            continue
-                        taken = handle.take_message(subscription.msg_type, subscription.raw)
-                        if taken is not None:
-                            callback(taken[0])
+                self._serve(self._entries)
         except Exception as err:  # a context shut down under a wait is the owner's to report
             if context.ok() and not self._stop.is_set():
                 self.error = err
                 raise
+
+    def _serve(self, entries: list[tuple[Subscription, Callable[[Any], None]]]) -> None:
+        """Wait on ``entries`` with one wait set (built once, refilled per wait) until the list changes or a stop."""
+        context = self.node.context
+        with ExitStack() as stack:
+            handles = [sub.handle for sub, _ in entries]
+            for handle in handles:
+                stack.enter_context(handle)  # keeps it alive while waited on (__enter__ returns None)
+            stack.enter_context(self._wake.handle)
+            stack.enter_context(context.handle)
+            wait_set = _rclpy.WaitSet(len(handles), 1, 0, 0, 0, 0, context.handle)
+            served = list(zip(handles, entries, strict=True))
+            while entries is self._entries and not self._stop.is_set() and context.ok():
+                wait_set.clear_entities()
+                for handle in handles:
+                    wait_set.add_subscription(handle)
+                wait_set.add_guard_condition(self._wake.handle)
+                wait_set.wait(WAIT_TIMEOUT_NS)
+                ready = wait_set.get_ready_entities("subscription")
+                for handle, (subscription, callback) in served:
+                    if handle.pointer in ready:
+                        taken = handle.take_message(subscription.msg_type, subscription.raw)
+                        if taken is not None:
+                            callback(taken[0])

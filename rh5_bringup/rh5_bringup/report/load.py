@@ -20,6 +20,7 @@ from rosbags.highlevel import AnyReader, AnyReaderError
 
 from rh5_bringup.report.cdr import CdrError, FloatArray, decode_joint_states, decode_stamped_floats
 from rh5_msgs_py import interfaces
+from rh5_msgs_py.conversions import time_to_ns
 from rh5_msgs_py.names import ACTUATOR_NAMES, JOINT_NAMES
 
 BATCH: Final = 8192
@@ -287,7 +288,7 @@ def _planned_base(msg: Any, t: float) -> PlannedBase:
 
 
 def _stamp_or_log(header: Any, log_ns: int) -> int:
-    ns = header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
+    ns = time_to_ns(header.stamp)
     return ns if ns > 0 and abs(ns - log_ns) < STAMP_TOLERANCE_NS else log_ns
 
 
@@ -409,7 +410,7 @@ def _read(reader: AnyReader, bag: Path) -> Recording:
                 rec.diagnostics.extend(_diagnostics(msg, log_ns, origin))
             elif key == "clock":
                 clock_log.append(log_ns)
-                clock_sim.append(msg.clock.sec * 1_000_000_000 + msg.clock.nanosec)
+                clock_sim.append(time_to_ns(msg.clock))
             else:
                 estop_t.append(log_ns)
                 estop_v.append(bool(msg.data))
