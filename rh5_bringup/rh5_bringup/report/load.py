@@ -466,11 +466,8 @@ def on_simulated_time(rec: Recording, clock_t: FloatArray, clock_ns: NDArray[np.
             f"{(sim[-1] - sim[0]) / max(clock_t[-1] - clock_t[0], 1e-9):.2f} x real time",
         ],
     )
-    for key in ("joint_commands", "joint_states", "actuator_commands", "actuator_states", "base_pose"):
-        series = getattr(rec, key)
-        if series is not None:
-            setattr(out, key, replace(series, t=remap(series.t)))
-    for key in ("wrench_left", "wrench_right", "estopped"):
+    timed = ("joint_commands", "joint_states", "actuator_commands", "actuator_states", "base_pose")
+    for key in (*timed, "wrench_left", "wrench_right", "estopped"):
         series = getattr(rec, key)
         if series is not None:
             setattr(out, key, replace(series, t=remap(series.t)))
