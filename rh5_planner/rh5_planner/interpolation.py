@@ -3,15 +3,19 @@
 Works on a :class:`rh5_msgs_py.trajectory_file.TrajectoryData` (a :class:`rh5_planner.problem.PlanResult`
 converts with ``to_trajectory_data()``):
 
-* Joints and base position: cubic Hermite splines through the knot positions with the knot velocities as
-  end slopes, so the spline hits every knot and its derivative equals the planned velocity there (C1);
-  a joint whose cubic would outrun every velocity planned for its segment moves linearly there instead
-  (`_limit_overshoot`: Euler's velocity steps at impulses).
+* Joints and base position: cubic Hermite splines through the knot positions (C1), with Euler-consistent
+  slopes (`euler_tangents`): Crocoddyl's semi-implicit Euler moves segment k at the velocity stored at knot
+  k+1 (q_{k+1} = q_k + dt v_{k+1}), i.e. with constant acceleration (v_{k+1} - v_k) / dt from the mean
+  velocity (v_k + v_{k+1}) / 2. That mean is the slope at knot k (the first and last knots keep theirs: the
+  robot starts and ends in the planned state). Slopes equal to the knot velocities instead make each
+  segment's acceleration swing between 4 a and -2 a (measured on the 5 kg walk: 33 Hz inertial forces that
+  rolled the stance foot in simulation). A joint whose cubic would still outrun every velocity planned for
+  its segment (an impulse's velocity step) moves linearly there instead (`_limit_overshoot`).
   The base linear velocity of the file is expressed in the base frame (pinocchio LOCAL), so the slope of
   the world position is ``R(q) v_lin``.
 * Base orientation: a cubic Hermite curve on SO(3) in the tangent space of the segment's start rotation:
-  phi(0) = 0, phi(1) = log(R0^T R1), end slopes from the body angular velocities (exact at the knots to first
-  order, consistent with the velocities), then R(t) = R0 exp(phi(t)); written back as a unit quaternion xyzw.
+  phi(0) = 0, phi(1) = log(R0^T R1), end slopes from the (Euler-consistent) body angular velocities, then
+  R(t) = R0 exp(phi(t)); written back as a unit quaternion xyzw.
 * Velocities: the analytic derivative of the position splines (joints), and the knot velocities linearly
   interpolated for the base twist.
 * Torques and contact wrenches: zero-order hold over each knot interval, exactly as the Euler integrator
@@ -30,7 +34,7 @@ import numpy.typing as npt
 
 from rh5_msgs_py.trajectory_file import NQ, TrajectoryData
 
-__all__ = ["RATE_HZ", "Interpolated", "hermite", "interpolate", "quat_to_rot", "rot_to_quat"]
+__all__ = ["RATE_HZ", "Interpolated", "euler_tangents", "hermite", "interpolate", "quat_to_rot", "rot_to_quat"]
 
 FloatArray = npt.NDArray[np.float64]
 RATE_HZ: Final = 1000.0
@@ -50,6 +54,17 @@ def hermite(
     value = h00 * p0 + h10 * h * m0 + h01 * p1 + h11 * h * m1
     rate = (d00 * p0 + d10 * h * m0 + d01 * p1 + d11 * h * m1) / h
     return value, rate
+
+
+def euler_tangents(velocities: FloatArray) -> FloatArray:
+    """Spline slopes at the knots of a semi-implicit Euler plan: (v_k + v_{k+1}) / 2, the first and last kept.
+
+    ``velocities`` is (N, d) (the knot velocities, one row per knot)."""
+    v = np.asarray(velocities, dtype=np.float64)
+    slopes = v.copy()
+    if v.shape[0] > 2:
+        slopes[1:-1] = 0.5 * (v[1:-1] + v[2:])
+    return slopes
 
 
 def _skew(w: FloatArray) -> FloatArray:
@@ -133,12 +148,11 @@ def _limit_overshoot(  # noqa: PLR0917 - the segment's arrays, in place
 ) -> None:
     """Where a joint's cubic is faster than anything planned for its segment, interpolate it linearly instead.
 
-    Crocoddyl's semi-implicit Euler stores at knot k+1 the velocity of the whole segment before it (q_{k+1} =
-    q_k + h v_{k+1}), so the velocity may jump at a knot (a touch-down impulse, a fast phase change). A cubic
-    with the knot velocities as slopes must then exceed the segment's mean speed somewhere (measured on the
-    5 kg walk: LRKnee 3.1 rad/s between knots whose velocities stay within 2.4 rad/s, its limit). On such
-    segments the joint moves linearly at the planned segment velocity, as the optimiser's integrator did; the
-    knots are still hit exactly, the velocity steps at the knots."""
+    ``v0``, ``v1`` bound the planned speeds at the segment's ends (knot velocities and spline slopes). The
+    velocity may jump at a knot (a touch-down impulse, a fast phase change), and a cubic through such knots can
+    outrun every planned speed (measured on the 5 kg walk with the knot velocities as slopes: LRKnee 3.1 rad/s
+    between knots within 2.4 rad/s, its limit). On such segments the joint moves linearly at the planned
+    segment velocity, as the optimiser's integrator did; the knots are still hit exactly."""
     secant = (q1 - q0) / h
     envelope = np.maximum(np.maximum(np.abs(v0), np.abs(v1)), np.abs(secant)) * (1.0 + 1e-9) + 1e-12
     over = (np.abs(dp) > envelope).any(axis=0)
@@ -166,6 +180,10 @@ def interpolate(data: TrajectoryData, rate_hz: float = RATE_HZ) -> Interpolated:
     out = np.zeros((grid.size, x.shape[1]))
     acc = np.zeros((grid.size, x.shape[1] - NQ - 6))
     nj = x.shape[1] - NQ - 6
+    rotations = np.array([quat_to_rot(quat) for quat in x[:, 3:7]])
+    joint_slopes = euler_tangents(x[:, NQ + 6 :])
+    base_slopes = euler_tangents(np.einsum("kij,kj->ki", rotations, x[:, NQ : NQ + 3]))  # world frame
+    spin_slopes = euler_tangents(x[:, NQ + 3 : NQ + 6])  # body frame
     for k in range(max(1, n - 1)):
         mask = seg == k
         if n == 1:
@@ -174,26 +192,29 @@ def interpolate(data: TrajectoryData, rate_hz: float = RATE_HZ) -> Interpolated:
         h = times[k + 1] - times[k]
         s = (grid[mask] - times[k]) / h
         x0, x1 = x[k], x[k + 1]
+        m0, m1 = joint_slopes[k], joint_slopes[k + 1]
         # joints
-        p, dp = hermite(x0[7:NQ], x1[7:NQ], x0[NQ + 6 :], x1[NQ + 6 :], h=h, s=s)
+        p, dp = hermite(x0[7:NQ], x1[7:NQ], m0, m1, h=h, s=s)
         s_col = s[:, None]
         d2 = (
             (12 * s_col - 6) * x0[7:NQ]
-            + (6 * s_col - 4) * h * x0[NQ + 6 :]
+            + (6 * s_col - 4) * h * m0
             + (-12 * s_col + 6) * x1[7:NQ]
-            + (6 * s_col - 2) * h * x1[NQ + 6 :]
+            + (6 * s_col - 2) * h * m1
         ) / h**2
-        _limit_overshoot(p, dp, d2, x0[7:NQ], x1[7:NQ], x0[NQ + 6 :], x1[NQ + 6 :], h, s)
+        speed0 = np.maximum(np.abs(x0[NQ + 6 :]), np.abs(m0))
+        speed1 = np.maximum(np.abs(x1[NQ + 6 :]), np.abs(m1))
+        _limit_overshoot(p, dp, d2, x0[7:NQ], x1[7:NQ], speed0, speed1, h, s)
         out[mask, 7:NQ] = p
         out[mask, NQ + 6 :] = dp
         acc[mask] = d2[:, :nj]
-        # base position (world), slopes from the LOCAL linear velocities
-        r0, r1 = quat_to_rot(x0[3:7]), quat_to_rot(x1[3:7])
-        p, _ = hermite(x0[:3], x1[:3], r0 @ x0[NQ : NQ + 3], r1 @ x1[NQ : NQ + 3], h=h, s=s)
+        # base position (world)
+        r0, r1 = rotations[k], rotations[k + 1]
+        p, _ = hermite(x0[:3], x1[:3], base_slopes[k], base_slopes[k + 1], h=h, s=s)
         out[mask, :3] = p
         # base orientation: Hermite in the tangent space at r0
         phi1 = _log3(r0.T @ r1)
-        phi, _ = hermite(np.zeros(3), phi1, x0[NQ + 3 : NQ + 6], x1[NQ + 3 : NQ + 6], h=h, s=s)
+        phi, _ = hermite(np.zeros(3), phi1, spin_slopes[k], spin_slopes[k + 1], h=h, s=s)
         out[mask, 3:7] = np.array([rot_to_quat(r0 @ _exp3(f)) for f in phi])
         # base twist: linear blend of the knot twists
         out[mask, NQ : NQ + 6] = (1 - s_col) * x0[NQ : NQ + 6] + s_col * x1[NQ : NQ + 6]

@@ -22,7 +22,7 @@ import pytest
 from rh5_hyrodyn_mapper.model import model_hash, q_index, v_index
 from rh5_msgs_py.names import FOOT_FRAMES
 from rh5_msgs_py.trajectory_file import NQ, load_trajectory
-from rh5_planner.interpolation import interpolate
+from rh5_planner.interpolation import euler_tangents, interpolate
 from rh5_planner.motions import MOTIONS, MotionError, get_motion
 from rh5_planner.problem import FOOT_SIZE_M, PlanResult, SolverSettings, build_problem, load_cost_config, solve
 
@@ -210,20 +210,23 @@ def test_interpolation_hits_knots_and_matches_velocities(walk: PlanResult) -> No
     at_knots = np.searchsorted(samples.times, data.times)
     np.testing.assert_allclose(samples.times[at_knots], data.times)
     np.testing.assert_allclose(samples.states[at_knots, :NQ], data.states[:, :NQ], atol=1e-9)
-    # velocities at the knots: the planned ones, or (a segment moved linearly, see _limit_overshoot) the
-    # mean velocity of the segment that starts there (what the Euler integrator stores at the next knot)
+    # velocities at the knots: the Euler-consistent slopes, or (a segment moved linearly, see _limit_overshoot)
+    # the mean velocity of the segment that starts there (what the Euler integrator stores at the next knot)
     planned = data.states[:, NQ + 6 :]
     knots_q = data.states[:, 7:NQ]
     secants = np.diff(knots_q, axis=0) / np.diff(data.times)[:, None]
     following = np.vstack([secants, planned[-1:]])
     at = samples.states[at_knots, NQ + 6 :]
-    assert (np.isclose(at, planned, atol=1e-9) | np.isclose(at, following, atol=1e-6)).all()
+    assert (np.isclose(at, euler_tangents(planned), atol=1e-9) | np.isclose(at, following, atol=1e-6)).all()
+    # Euler-consistent slopes: the reference accelerates no harder than the plan did (RMS over all joints);
+    # the knot velocities as slopes made every segment swing from 4 a to -2 a (twice the RMS)
+    euler_acc = np.diff(planned, axis=0) / np.diff(data.times)[:, None]
+    assert np.sqrt(np.mean(samples.joint_accelerations**2)) <= np.sqrt(np.mean(euler_acc**2))
     # no sample moves faster than what was planned around it (no spline overshoot past the knot velocities)
     fd = np.abs(np.diff(samples.states[:, 7:NQ], axis=0) / np.diff(samples.times)[:, None])
     segment_of = np.clip(np.searchsorted(data.times, samples.times[:-1], side="right") - 1, 0, data.times.size - 2)
-    envelope = np.maximum(
-        np.maximum(np.abs(planned[segment_of]), np.abs(planned[segment_of + 1])), np.abs(secants[segment_of])
-    )
+    slopes = np.maximum(np.abs(planned), np.abs(euler_tangents(planned)))  # either is a planned speed
+    envelope = np.maximum(np.maximum(slopes[segment_of], slopes[segment_of + 1]), np.abs(secants[segment_of]))
     assert (fd <= envelope * 1.001 + 1e-6).all()
     # the derivative of the joint splines equals the interpolated velocities (central differences)
     segment = np.searchsorted(data.times, samples.times, side="right")
