@@ -9,7 +9,7 @@ bag time. Linear actuators are drawn in mm, joints and rotary actuators in rad.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Final
 
@@ -135,6 +135,25 @@ def base_figure(analysis: Analysis, path: Path) -> Path | None:
         ax.legend(fontsize=8, loc="best")
     axes[-1].set_xlabel("trajectory time [s]")
     fig.suptitle("Floating base: measured minus planned position", fontsize=10)
+    fig.savefig(path, dpi=DPI)
+    return path
+
+
+def replay_figure(curves: Mapping[str, tuple[FloatArray, FloatArray]], path: Path, title: str) -> Path:
+    """Base deviation x/y/z (mm) of several in-process replays (label -> (times [s], (M, 3) deviation [m])) over
+    trajectory time, with the paper's bands (bench/walk_pybullet.py)."""
+    fig = _new_figure(8.0, 7.0)
+    axes = fig.subplots(3, 1, sharex=True)
+    for i, (ax, axis) in enumerate(zip(axes, "xyz", strict=True)):
+        lo, hi = BASE_BAND_M[axis]
+        ax.axhspan(lo * 1e3, hi * 1e3, color="tab:green", alpha=0.12, label="paper band")
+        for label, (times, deviation) in curves.items():
+            ax.plot(times, deviation[:, i] * 1e3, linewidth=1.0, label=label)
+        ax.set_ylabel(f"{axis} [mm]")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8, loc="best")
+    axes[-1].set_xlabel("trajectory time [s]")
+    fig.suptitle(title, fontsize=10)
     fig.savefig(path, dpi=DPI)
     return path
 

@@ -497,6 +497,27 @@ class PhysicsWorld:
         pb.stepSimulation(physicsClientId=cid)
         self.steps += 1
 
+    def step_position_motors(
+        self, q: FloatArray, v: FloatArray, position_gain: float, velocity_gain: float, max_torque: FloatArray
+    ) -> None:
+        """Advance one time step with PyBullet's own joint position motors (an implicit PD inside its constraint
+        solver, stable at any gain) tracking ``q``, ``v``, each torque limited to ``max_torque`` [Nm]."""
+        cid = self._client
+        n = NUM_JOINTS
+        pb.setJointMotorControlArray(
+            self.robot,
+            self.joint_indices,
+            pb.POSITION_CONTROL,
+            targetPositions=np.asarray(q, dtype=np.float64).tolist(),
+            targetVelocities=np.asarray(v, dtype=np.float64).tolist(),
+            positionGains=[position_gain] * n,
+            velocityGains=[velocity_gain] * n,
+            forces=np.asarray(max_torque, dtype=np.float64).tolist(),
+            physicsClientId=cid,
+        )
+        pb.stepSimulation(physicsClientId=cid)
+        self.steps += 1
+
     # --- the crane -----------------------------------------------------------------------------------------------
 
     @property
