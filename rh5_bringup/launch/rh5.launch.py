@@ -2,7 +2,7 @@
 """Launch the RH5 control suite: `ros2 launch rh5_bringup rh5.launch.py [sim:=kinematic|physics]`."""
 
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
+from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
@@ -13,8 +13,15 @@ ARGUMENTS = {'sim': {'default': 'kinematic',
          'description': 'Simulated hardware, kinematic (boards only) or physics (PyBullet floating-base RH5 '
                         'on the ground).',
          'node': 'sim_hardware',
-         'parameter': 'mode'}}
-"""Launch arguments: name -> default, choices, description and the node parameter each sets."""
+         'parameter': 'mode',
+         'implies': {'physics': {'sim_hardware': {'publish_clock': True},
+                                 'stabilizer': {'use_sim_time': True,
+                                                'playback_clock': 'ros',
+                                                'rest_velocity_rad_s': 0.25,
+                                                'state_timeout_s': 0.5},
+                                 'driver': {'board_silence_timeout_s': 0.5}}}}}
+"""Launch arguments: name -> default, choices, description, the node parameter each sets, and the further
+parameters some of its values imply (value -> node -> parameters)."""
 
 NODES = [{'name': 'recorder',
   'package': 'rh5_bringup',
@@ -49,17 +56,16 @@ NODES = [{'name': 'recorder',
 """The nodes in start order, as in bringup.yaml."""
 
 
-def generate_launch_description() -> LaunchDescription:
-    """Declare the arguments and one Node action per node of the bringup description."""
-    actions = [
-        DeclareLaunchArgument(name, default_value=a["default"], choices=a["choices"], description=a["description"])
-        for name, a in ARGUMENTS.items()
-    ]
+def _nodes(context) -> list:
+    """One Node action per node of the bringup description, with the launch arguments' values applied."""
+    values = {name: LaunchConfiguration(name).perform(context) for name in ARGUMENTS}
+    actions = []
     for node in NODES:
         parameters = dict(node["parameters"])
         for name, a in ARGUMENTS.items():
             if a["node"] == node["name"]:
-                parameters[a["parameter"]] = LaunchConfiguration(name)
+                parameters[a["parameter"]] = values[name]
+            parameters.update(a["implies"].get(values[name], {}).get(node["name"], {}))
         actions.append(
             Node(
                 package=node["package"],
@@ -71,4 +77,13 @@ def generate_launch_description() -> LaunchDescription:
                 output="screen",
             )
         )
-    return LaunchDescription(actions)
+    return actions
+
+
+def generate_launch_description() -> LaunchDescription:
+    """Declare the arguments; the nodes are made once their values are known."""
+    declared = [
+        DeclareLaunchArgument(name, default_value=a["default"], choices=a["choices"], description=a["description"])
+        for name, a in ARGUMENTS.items()
+    ]
+    return LaunchDescription([*declared, OpaqueFunction(function=_nodes)])

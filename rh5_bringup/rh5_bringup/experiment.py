@@ -33,8 +33,6 @@ SETTLE_AFTER_ENABLE_S = 0.5
 """Boards hold their pose this long before the support is released."""
 SETTLE_AFTER_RELEASE_S = 1.0
 """The robot stands on its feet under the boards' hold this long before playback starts."""
-SIM_STALL_TOLERANCE_S = 0.5
-"""Staleness bound of the driver and the stabilizer in physics experiments (robot: 5 ms; see experiment_bringup)."""
 FALL_HEIGHT_FRACTION = 0.6
 """The robot has fallen when the base is below this fraction of its height at release."""
 
@@ -135,20 +133,7 @@ def experiment_bringup(settings: ExperimentSettings, trajectory: Path, data: Tra
             initial_joint_positions=[float(v) for v in data.joint_positions()[0]],
             initial_base_xy=[float(v) for v in data.base_positions()[0, :2]],
             hand_payload_kg=payload,
-            publish_clock=True,
-        )
-        # The physics runs slower than real time on a small machine, so the stabilizer plays the motion on /clock.
-        # The simulated light joints keep a small residual ringing (sim.physics docstring: <= 0.09 rad/s RMS), so
-        # "at rest" is looser. The simulation also stalls now and then for tens of ms (2 cores, every node a Python
-        # process): a stalled simulator is not a dead bus, so the staleness rules wait longer than on the robot.
-        bringup = bringup.with_parameters(
-            "stabilizer",
-            use_sim_time=True,
-            playback_clock="ros",
-            rest_velocity_rad_s=0.25,
-            state_timeout_s=SIM_STALL_TOLERANCE_S,
-        )
-        bringup = bringup.with_parameters("driver", board_silence_timeout_s=SIM_STALL_TOLERANCE_S)
+        )  # /clock, playback on it and the staleness bounds: bringup.yaml's sim:=physics
     for node, parameters in settings.node_parameters.items():
         bringup = bringup.with_parameters(node, **parameters)
     return bringup

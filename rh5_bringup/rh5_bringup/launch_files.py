@@ -26,30 +26,30 @@ _TEMPLATE = '''\
 """Launch the RH5 control suite: `ros2 launch rh5_bringup {file_name}{argument_usage}`."""
 
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
+from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 NAMESPACE = {namespace!r}
 
 ARGUMENTS = {arguments}
-"""Launch arguments: name -> default, choices, description and the node parameter each sets."""
+"""Launch arguments: name -> default, choices, description, the node parameter each sets, and the further
+parameters some of its values imply (value -> node -> parameters)."""
 
 NODES = {nodes}
 """The nodes in start order, as in bringup.yaml."""
 
 
-def generate_launch_description() -> LaunchDescription:
-    """Declare the arguments and one Node action per node of the bringup description."""
-    actions = [
-        DeclareLaunchArgument(name, default_value=a["default"], choices=a["choices"], description=a["description"])
-        for name, a in ARGUMENTS.items()
-    ]
+def _nodes(context) -> list:
+    """One Node action per node of the bringup description, with the launch arguments' values applied."""
+    values = {{name: LaunchConfiguration(name).perform(context) for name in ARGUMENTS}}
+    actions = []
     for node in NODES:
         parameters = dict(node["parameters"])
         for name, a in ARGUMENTS.items():
             if a["node"] == node["name"]:
-                parameters[a["parameter"]] = LaunchConfiguration(name)
+                parameters[a["parameter"]] = values[name]
+            parameters.update(a["implies"].get(values[name], {{}}).get(node["name"], {{}}))
         actions.append(
             Node(
                 package=node["package"],
@@ -61,7 +61,16 @@ def generate_launch_description() -> LaunchDescription:
                 output="screen",
             )
         )
-    return LaunchDescription(actions)
+    return actions
+
+
+def generate_launch_description() -> LaunchDescription:
+    """Declare the arguments; the nodes are made once their values are known."""
+    declared = [
+        DeclareLaunchArgument(name, default_value=a["default"], choices=a["choices"], description=a["description"])
+        for name, a in ARGUMENTS.items()
+    ]
+    return LaunchDescription([*declared, OpaqueFunction(function=_nodes)])
 '''
 
 
@@ -79,6 +88,7 @@ def render_launch_file(bringup: Bringup, file_name: str = LAUNCH_FILE) -> str:
             "description": a.description,
             "node": a.node,
             "parameter": a.parameter,
+            "implies": {value: {node: dict(p) for node, p in by_node.items()} for value, by_node in a.implies.items()},
         }
         for a in bringup.arguments
     }

@@ -14,6 +14,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
@@ -41,7 +42,8 @@ class NodeSpec:
 
 @dataclass(frozen=True)
 class LaunchArgument:
-    """A launch argument of the bringup: a named value that sets one parameter of one node."""
+    """A launch argument of the bringup: a named value that sets one parameter of one node, and for some of
+    its values further parameters of other nodes (``implies``: value -> node -> parameters)."""
 
     name: str
     default: str
@@ -49,6 +51,7 @@ class LaunchArgument:
     node: str
     parameter: str
     description: str = ""
+    implies: Mapping[str, Mapping[str, Mapping[str, Any]]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -73,6 +76,8 @@ class Bringup:
                 msg = f"launch argument {argument.name}: {value!r} is not one of {list(argument.choices)}"
                 raise ValueError(msg)
             bringup = bringup.with_parameters(argument.node, **{argument.parameter: value})
+            for node, parameters in argument.implies.get(value, {}).items():
+                bringup = bringup.with_parameters(node, **parameters)
         return bringup
 
     def with_parameters(self, node_name: str, **parameters: Any) -> Bringup:
@@ -110,6 +115,10 @@ def load_bringup(path: Path | None = None) -> Bringup:
             tuple(str(c) for c in a.get("choices") or ()),
             *str(a["sets"]).split(".", 1),
             description=str(a.get("description", "")),
+            implies={
+                str(value): {str(node): dict(parameters) for node, parameters in (by_node or {}).items()}
+                for value, by_node in (a.get("implies") or {}).items()
+            },
         )
         for name, a in (document.get("arguments") or {}).items()
     )
@@ -119,6 +128,14 @@ def load_bringup(path: Path | None = None) -> Bringup:
         if argument.node not in names:
             msg = f"launch argument {argument.name} sets {argument.node}.{argument.parameter}: no such node"
             raise ValueError(msg)
+        for value, by_node in argument.implies.items():
+            if argument.choices and value not in argument.choices:
+                msg = f"launch argument {argument.name} implies parameters for {value!r}, not one of its choices"
+                raise ValueError(msg)
+            unknown = sorted(set(by_node) - names)
+            if unknown:
+                msg = f"launch argument {argument.name}={value} implies parameters of {unknown}: no such node"
+                raise ValueError(msg)
     return bringup
 
 

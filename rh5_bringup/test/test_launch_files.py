@@ -22,13 +22,23 @@ class _Recorded:
         self.args, self.kwargs = args, kwargs
 
 
+class _LaunchConfiguration(_Recorded):
+    """Stands in for launch.substitutions.LaunchConfiguration: performs to the context's value of its name."""
+
+    def perform(self, context: dict[str, str]) -> str:
+        return context[self.args[0]]
+
+
 @pytest.fixture
 def fake_launch_api(monkeypatch: pytest.MonkeyPatch) -> None:
     """Install minimal `launch` and `launch_ros` modules whose classes record their arguments."""
     kinds = {
         "launch": {"LaunchDescription": _Recorded},
-        "launch.actions": {"DeclareLaunchArgument": type("DeclareLaunchArgument", (_Recorded,), {})},
-        "launch.substitutions": {"LaunchConfiguration": type("LaunchConfiguration", (_Recorded,), {})},
+        "launch.actions": {
+            "DeclareLaunchArgument": type("DeclareLaunchArgument", (_Recorded,), {}),
+            "OpaqueFunction": type("OpaqueFunction", (_Recorded,), {}),
+        },
+        "launch.substitutions": {"LaunchConfiguration": _LaunchConfiguration},
         "launch_ros": {},
         "launch_ros.actions": {"Node": type("Node", (_Recorded,), {})},
     }
@@ -49,27 +59,32 @@ def test_check_fails_on_a_stale_file(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert "is stale" in capsys.readouterr().err
 
 
-def test_launch_file_starts_every_node_with_its_parameters(fake_launch_api: None) -> None:
-    namespace = runpy.run_path(str(launch_files.LAUNCH_DIR / launch_files.LAUNCH_FILE))
-    description = namespace["generate_launch_description"]()
-    actions = description.args[0]
+def _launch(path: Path, **values: str) -> tuple[list[Any], list[dict[str, Any]]]:
+    """Execute the launch file at ``path``: its declared arguments, and the Node kwargs for ``values``."""
+    actions = runpy.run_path(str(path))["generate_launch_description"]().args[0]
     declared = [a for a in actions if type(a).__name__ == "DeclareLaunchArgument"]
-    nodes = [a.kwargs for a in actions if type(a).__name__ == "Node"]
+    (opaque,) = [a for a in actions if type(a).__name__ == "OpaqueFunction"]
+    context = {d.args[0]: values.get(d.args[0], d.kwargs["default_value"]) for d in declared}
+    nodes = [a.kwargs for a in opaque.kwargs["function"](context) if type(a).__name__ == "Node"]
+    return declared, nodes
+
+
+@pytest.mark.parametrize("sim", ["kinematic", "physics"])
+def test_launch_file_starts_every_node_with_its_parameters(fake_launch_api: None, sim: str) -> None:
+    declared, nodes = _launch(launch_files.LAUNCH_DIR / launch_files.LAUNCH_FILE, sim=sim)
     bringup = load_bringup()
     assert [(d.args[0], d.kwargs["default_value"]) for d in declared] == [
         (a.name, a.default) for a in bringup.arguments
     ]
-    assert [n["name"] for n in nodes] == [n.name for n in bringup.nodes]
-    for launched, spec in zip(nodes, bringup.nodes, strict=True):
+    resolved = bringup.resolved(sim=sim)  # what `rh5 up --sim` starts
+    assert [n["name"] for n in nodes] == [n.name for n in resolved.nodes]
+    for launched, spec in zip(nodes, resolved.nodes, strict=True):
         assert (launched["package"], launched["executable"]) == (spec.package, spec.executable)
-        assert launched["namespace"] == bringup.namespace
+        assert launched["namespace"] == resolved.namespace
         assert launched["remappings"] == [list(pair) for pair in spec.remappings]
-        parameters = launched["parameters"][0]
-        for key, value in spec.parameters.items():
-            assert parameters[key] == value
-    sim = next(n for n in nodes if n["name"] == "sim_hardware")["parameters"][0]["mode"]
-    assert type(sim).__name__ == "LaunchConfiguration"
-    assert sim.args == ("sim",)
+        assert launched["parameters"] == [spec.parameters]
+    stabilizer = next(n for n in nodes if n["name"] == "stabilizer")["parameters"][0]
+    assert stabilizer.get("use_sim_time", False) is (sim == "physics")  # physics plays on the simulation's /clock
 
 
 def test_rendering_follows_remappings_and_arguments(fake_launch_api: None, tmp_path: Path) -> None:
@@ -84,14 +99,32 @@ def test_rendering_follows_remappings_and_arguments(fake_launch_api: None, tmp_p
     bringup = load_bringup(description)
     path = tmp_path / "x.launch.py"
     path.write_text(launch_files.render_launch_file(bringup, path.name), encoding="utf-8")
-    actions = runpy.run_path(str(path))["generate_launch_description"]().args[0]
-    node = next(a for a in actions if type(a).__name__ == "Node").kwargs
+    _, (node,) = _launch(path, rate="1000")
     assert node["namespace"] == "robot1"
     assert node["remappings"] == [["joint_states", "/robot1/measured"]]
-    assert node["parameters"][0]["rate_hz"].args == ("rate",)
+    assert node["parameters"] == [{"transport": "udp", "rate_hz": "1000"}]
     resolved = bringup.resolved(rate="1000")
     assert resolved.nodes[0].parameters == {"transport": "udp", "rate_hz": "1000"}
     with pytest.raises(ValueError, match="not one of"):
         bringup.resolved(rate="7")
     with pytest.raises(KeyError, match="unknown launch arguments"):
         bringup.resolved(sim="physics")
+
+
+def test_argument_values_imply_parameters_of_other_nodes(tmp_path: Path) -> None:
+    def bringup_with(implies: str) -> Path:
+        path = tmp_path / "bringup.yaml"
+        path.write_text(
+            "arguments:\n  sim: {default: a, choices: [a, b], sets: one.mode, implies: " + implies + "}\n"
+            "nodes:\n  - {name: one, package: p, executable: e}\n  - {name: two, package: p, executable: e}\n",
+            encoding="utf-8",
+        )
+        return path
+
+    bringup = load_bringup(bringup_with("{b: {two: {use_sim_time: true}}}"))
+    assert [n.parameters for n in bringup.resolved(sim="a").nodes] == [{"mode": "a"}, {}]
+    assert [n.parameters for n in bringup.resolved(sim="b").nodes] == [{"mode": "b"}, {"use_sim_time": True}]
+    with pytest.raises(ValueError, match="no such node"):
+        load_bringup(bringup_with("{b: {three: {x: 1}}}"))
+    with pytest.raises(ValueError, match="not one of its choices"):
+        load_bringup(bringup_with("{c: {two: {x: 1}}}"))
