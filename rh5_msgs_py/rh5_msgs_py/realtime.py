@@ -154,23 +154,17 @@ def set_timer_slack(ns: int) -> bool:
         return False
 
 
-class DeadlineLoop:
-    """Calls ``step(now_ns, period_ns)`` every period from a dedicated thread, on absolute deadlines.
+class LoopThread:
+    """A named daemon thread that runs ``_loop`` until ``stop``: the start/stop, timing record and error hand-over
+    that every loop of the suite shares. An exception that ends the loop is kept in ``error`` for the owner,
+    which decides what a dead loop means. ``stop`` is idempotent."""
 
-    A step that overruns its deadline is counted as a deadline miss; the schedule then
-    skips the lost ticks instead of bursting to catch up. ``stop`` is idempotent.
-    """
-
-    def __init__(self, rate_hz: float, step: Callable[[int, int], None], name: str = "rh5-loop") -> None:
-        if not rate_hz > 0:
-            msg = f"rate_hz must be positive, got {rate_hz}"
-            raise ValueError(msg)
-        self.period_ns = round(1e9 / rate_hz)
-        self._step = step
+    def __init__(self, period_ns: int, name: str) -> None:
+        self.period_ns = period_ns
+        self.timer = LoopTimer(period_ns)
+        self.error: BaseException | None = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
-        self.timer = LoopTimer(self.period_ns)
-        self.error: BaseException | None = None
 
     def start(self) -> None:
         """Start the loop thread (and make the interpreter hand the GIL over often enough for 1 kHz)."""
@@ -193,25 +187,47 @@ class DeadlineLoop:
         return self.timer.stats()
 
     def _run(self) -> None:
+        try:
+            self._loop()
+        except BaseException as err:  # surfaced to the owner
+            self.error = err
+            raise
+
+    def _loop(self) -> None:
+        """The loop body: run until ``self._stop`` is set, recording each cycle in ``self.timer``."""
+        raise NotImplementedError
+
+
+class DeadlineLoop(LoopThread):
+    """Calls ``step(now_ns, period_ns)`` every period from a dedicated thread, on absolute deadlines.
+
+    A step that overruns its deadline is counted as a deadline miss; the schedule then
+    skips the lost ticks instead of bursting to catch up.
+    """
+
+    def __init__(self, rate_hz: float, step: Callable[[int, int], None], name: str = "rh5-loop") -> None:
+        if not rate_hz > 0:
+            msg = f"rate_hz must be positive, got {rate_hz}"
+            raise ValueError(msg)
+        super().__init__(round(1e9 / rate_hz), name)
+        self._step = step
+
+    def _loop(self) -> None:
         set_timer_slack(TIMER_SLACK_NS)
         period = self.period_ns
         deadline = time.monotonic_ns() + period
-        try:
-            while not self._stop.is_set():
-                remaining = deadline - time.monotonic_ns()
-                if remaining > SPIN_NS:
-                    time.sleep((remaining - SPIN_NS) / 1e9)
-                while time.monotonic_ns() < deadline:
-                    time.sleep(0)  # yields the GIL: other loops of the process must not wait for this spin
-                now = time.monotonic_ns()
-                self.timer.record(now)
-                self._step(now, period)
-                deadline += period
-                finished = time.monotonic_ns()
-                if finished > deadline:
-                    missed = (finished - deadline) // period + 1
-                    self.timer.deadline_misses += int(missed)
-                    deadline += int(missed) * period
-        except BaseException as err:  # surfaced to the owner, which decides what a dead loop means
-            self.error = err
-            raise
+        while not self._stop.is_set():
+            remaining = deadline - time.monotonic_ns()
+            if remaining > SPIN_NS:
+                time.sleep((remaining - SPIN_NS) / 1e9)
+            while time.monotonic_ns() < deadline:
+                time.sleep(0)  # yields the GIL: other loops of the process must not wait for this spin
+            now = time.monotonic_ns()
+            self.timer.record(now)
+            self._step(now, period)
+            deadline += period
+            finished = time.monotonic_ns()
+            if finished > deadline:
+                missed = (finished - deadline) // period + 1
+                self.timer.deadline_misses += int(missed)
+                deadline += int(missed) * period

@@ -10,8 +10,6 @@ silent boards, sensor noise.
 
 from __future__ import annotations
 
-import sys
-import threading
 import time
 from collections import Counter, deque
 from dataclasses import dataclass, field
@@ -31,7 +29,7 @@ from rh5_bringup.ndlcom.payloads import (
 )
 from rh5_bringup.sim.actuators import ActuatorBank, ActuatorMeasurement, Mode, Status
 from rh5_bringup.transports.base import Transport
-from rh5_msgs_py.realtime import GIL_SWITCH_INTERVAL_S, LoopStats, LoopTimer, set_timer_slack
+from rh5_msgs_py.realtime import LoopThread, set_timer_slack
 
 BOARD_COMMAND_TIMEOUT_NS = 20_000_000  # the boards' own watchdog
 BOARD_PERIOD_NS = 1_000_000  # the boards' position loop
@@ -228,7 +226,7 @@ class BoardEmulator:
         return remote is not None
 
 
-class BoardsServer:
+class BoardsServer(LoopThread):
     """Runs the emulated boards as the real ones behave: every command burst is answered at once (each board
     replies to its command), and the boards tick every ``period_ns`` even when no command comes."""
 
@@ -240,54 +238,31 @@ class BoardsServer:
         *,
         answer_bursts: bool = True,
     ) -> None:
+        super().__init__(period_ns, name)
         self.emulator = emulator
-        self.period_ns = period_ns
         self.answer_bursts = answer_bursts  # False: tick on the period only (a CAN burst trickles in frame by frame)
-        self.timer = LoopTimer(period_ns)
-        self.error: BaseException | None = None
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
 
-    def start(self) -> None:
-        """Start serving (and make the interpreter hand the GIL over often enough for 1 kHz, as DeadlineLoop does)."""
-        sys.setswitchinterval(min(sys.getswitchinterval(), GIL_SWITCH_INTERVAL_S))
-        self._thread.start()
-
-    def stop(self, timeout_s: float = 2.0) -> None:
-        """Stop serving (idempotent)."""
-        self._stop.set()
-        if self._thread.is_alive() and threading.current_thread() is not self._thread:
-            self._thread.join(timeout_s)
-
-    def stats(self) -> LoopStats:
-        """Timing of the latest cycles (command-driven and idle ticks alike)."""
-        return self.timer.stats()
-
-    def _run(self) -> None:
+    def _loop(self) -> None:
         set_timer_slack(1_000)
         transport, period = self.emulator.transport, self.period_ns
         next_tick = time.monotonic_ns() + period
-        try:
-            while not self._stop.is_set():
-                wait = max(next_tick - time.monotonic_ns(), 0) / 1e9
-                if self.answer_bursts:
-                    frames = transport.recv(timeout=wait)
-                    if frames:  # the rest of the burst follows within microseconds (several datagrams)
-                        frames += transport.recv(timeout=BURST_GAP_S)
-                    elif time.monotonic_ns() < next_tick:
-                        continue
-                else:
-                    self._stop.wait(wait)
-                    frames = None  # the cycle drains everything that arrived
-                now = time.monotonic_ns()
-                self.timer.record(now)
-                self.emulator.cycle(now, period, frames=frames)
-                if now >= next_tick:
-                    missed = (now - next_tick) // period
-                    self.timer.deadline_misses += int(missed)
-                    next_tick += (missed + 1) * period
-                else:
-                    next_tick = now + period  # a command burst is this cycle's tick
-        except BaseException as err:
-            self.error = err
-            raise
+        while not self._stop.is_set():
+            wait = max(next_tick - time.monotonic_ns(), 0) / 1e9
+            if self.answer_bursts:
+                frames = transport.recv(timeout=wait)
+                if frames:  # the rest of the burst follows within microseconds (several datagrams)
+                    frames += transport.recv(timeout=BURST_GAP_S)
+                elif time.monotonic_ns() < next_tick:
+                    continue
+            else:
+                self._stop.wait(wait)
+                frames = None  # the cycle drains everything that arrived
+            now = time.monotonic_ns()
+            self.timer.record(now)
+            self.emulator.cycle(now, period, frames=frames)
+            if now >= next_tick:
+                missed = (now - next_tick) // period
+                self.timer.deadline_misses += int(missed)
+                next_tick += (missed + 1) * period
+            else:
+                next_tick = now + period  # a command burst is this cycle's tick
