@@ -251,9 +251,11 @@ class WalkMotion(MotionSpec):
     feet side by side at ``length_m``; swing soles follow a parabola of apex ``step_height_m``. The horizon
     ``total_time_s`` is split into ``initial_support_s`` and ``final_support_s`` double support,
     ``support_knots`` double-support knots after each step and equal swing phases; every touch-down is an
-    impulse node. ``track_com`` adds a predefined CoM path (linear in x from the initial CoM to the initial
-    CoM + length, middle of the feet in y) as a CoM cost and as the warm start: the paper's remedy above
-    0.35 m/s.
+    impulse node. ``rest_s`` more of double support follow the walk (the horizon is ``total_time_s + rest_s``)
+    so that the robot can come to rest: within ``final_support_s`` alone the CoP region cannot stop the CoM
+    (the 5 kg walk ended at 0.03 m/s with its CoP on the toes, and toppled after playback on PyBullet).
+    ``track_com`` adds a predefined CoM path (linear in x from the initial CoM to the initial CoM + length,
+    middle of the feet in y) as a CoM cost and as the warm start: the paper's remedy above 0.35 m/s.
     """
 
     length_m: float = 0.5
@@ -262,6 +264,7 @@ class WalkMotion(MotionSpec):
     support_knots: int = 2
     initial_support_s: float = 0.15
     final_support_s: float = 0.15
+    rest_s: float = 0.0
     first_foot: str = "right"
     track_com: bool = False
 
@@ -276,6 +279,7 @@ class WalkMotion(MotionSpec):
         _count("support_knots", self.support_knots, 1)
         _check_nonnegative("initial_support_s", self.initial_support_s)
         _check_nonnegative("final_support_s", self.final_support_s)
+        _check_nonnegative("rest_s", self.rest_s)
         if self.first_foot not in SIDES:
             msg = f"first_foot must be one of {SIDES}, got {self.first_foot!r}"
             raise MotionError(msg)
@@ -292,10 +296,15 @@ class WalkMotion(MotionSpec):
         return self.length_m / self.total_time_s
 
     @property
+    def n_knots(self) -> int:
+        """Running knots of the horizon: the walk and the rest after it."""
+        return _knots(self.total_time_s + self.rest_s, self.dt)
+
+    @property
     def swing_knots(self) -> int:
-        """Knots of each swing phase (the remainder of the horizon split over the steps)."""
+        """Knots of each swing phase (the walk's time after its support phases, split over the steps)."""
         support = _knots(self.initial_support_s, self.dt) + _knots(self.final_support_s, self.dt)
-        return (self.n_knots - support - self.n_steps * self.support_knots) // self.n_steps
+        return (_knots(self.total_time_s, self.dt) - support - self.n_steps * self.support_knots) // self.n_steps
 
     def initial_base_shift(self) -> FloatArray:
         """The base ends ``length_m`` ahead."""
@@ -313,7 +322,7 @@ class WalkMotion(MotionSpec):
         def com_at(i: int) -> FloatArray | None:
             if not self.track_com:
                 return None
-            s = min(1.0, i / max(1, total - _knots(self.final_support_s, self.dt)))
+            s = min(1.0, i / max(1, _knots(self.total_time_s, self.dt) - _knots(self.final_support_s, self.dt)))
             c = com0.copy()
             c[0] += s * self.length_m
             c[1] = mid0[1]
@@ -627,8 +636,9 @@ def _stepping_phases() -> tuple[tuple[str, float], ...]:
 MOTIONS: Final[dict[str, MotionSpec]] = {
     m.name: m
     for m in (
-        # paper table: 0.5 m, 5 cm step height, 1.5 s, 30 ms knots, 0.35 m/s (0.33 m/s average), 5 kg per hand
-        WalkMotion("walk_with_5kg_weights", dt=0.03, total_time_s=1.5, payload_kg_per_hand=5.0),
+        # paper table: 0.5 m, 5 cm step height, 1.5 s, 30 ms knots, 0.35 m/s (0.33 m/s average), 5 kg per hand;
+        # then 0.5 s standing to come to rest (not in the table: a robot has to stop after the walk)
+        WalkMotion("walk_with_5kg_weights", dt=0.03, total_time_s=1.5, payload_kg_per_hand=5.0, rest_s=0.5),
         # paper table: 0.7 m, 0.1 m step height, 0.7 s, 30 ms; > 0.35 m/s, so a predefined CoM path
         WalkMotion(
             "fast_walk_1m_s",
