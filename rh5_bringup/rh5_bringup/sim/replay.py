@@ -12,9 +12,9 @@ Three controllers track the 1 kHz reference (the planner's interpolation) in joi
   `rh5 experiment` runs it through the nodes, minus ROS, timing and the stabiliser.
 
 All optionally feed the planned torques forward (not ``rigid_pd``: PyBullet's motors take no feed-forward).
-The result holds the base deviation from the plan during the motion (the settled start offset removed) and
-how far each stance sole tilted: a tilting stance sole means the robot needed a centre of pressure outside
-the foot and rolled over its edge.
+The result holds the base deviation from the plan (the settled start offset removed) during the motion and
+an optional hold of its last pose, and how far each stance sole tilted: a tilting stance sole means the robot
+needed a centre of pressure outside the foot and rolled over its edge.
 """
 
 from __future__ import annotations
@@ -53,7 +53,8 @@ PERIOD_S: Final = 1e-3
 
 @dataclass(frozen=True)
 class ReplayResult:
-    """Base deviation (measured minus planned, start offset removed) and stance sole tilt during the motion."""
+    """Base deviation (measured minus planned, start offset removed) and stance sole tilt during the motion (and
+    the hold after it)."""
 
     controller: str
     times: FloatArray
@@ -125,8 +126,10 @@ def replay(
     *,
     friction_coefficient: float = 0.7,
     torque_feedforward: bool = False,
+    hold_s: float = 0.0,
 ) -> ReplayResult:
-    """Stand the robot at the plan's first pose, let go of it, play ``data`` with ``controller``."""
+    """Stand the robot at the plan's first pose, let go of it, play ``data`` with ``controller``, then hold its
+    last pose for ``hold_s`` (those samples follow the motion's, against the plan's last base position)."""
     if controller not in CONTROLLERS:
         msg = f"replay: controller must be one of {CONTROLLERS}, got {controller!r}"
         raise ValueError(msg)
@@ -136,7 +139,14 @@ def replay(
     q_ref = reference.states[:, 7:NQ]
     v_ref = reference.states[:, NQ + 6 :]
     tau_ref = reference.controls if torque_feedforward else np.zeros_like(reference.controls)
-    base_ref = reference.states[:, :3]
+    hold = round(hold_s / PERIOD_S)
+    if hold > 0:  # the last pose at rest
+        q_ref = np.vstack([q_ref, np.repeat(q_ref[-1:], hold, axis=0)])
+        v_ref = np.vstack([v_ref, np.zeros((hold, v_ref.shape[1]))])
+        tau_ref = np.vstack([tau_ref, np.repeat(tau_ref[-1:], hold, axis=0)])
+    base_ref = reference.states[np.minimum(np.arange(len(q_ref)), len(reference.times) - 1), :3]
+    phases = reference.contact_phases[np.minimum(np.arange(len(q_ref)), len(reference.times) - 1)]
+    times = reference.times[0] + PERIOD_S * np.arange(len(q_ref))
     payload = float(data.motion.get("parameters", {}).get("payload_kg_per_hand", 0.0))
     world, advance = _setup(controller, q_ref[0], friction_coefficient, payload)
     try:
@@ -154,12 +164,12 @@ def replay(
             advance(q_ref[k], v_ref[k], tau_ref[k])
             deviation[k] = world.base_pose().position - base_ref[k] - offset
             for i, side in enumerate(("left", "right")):
-                if reference.contact_phases[k, i]:
+                if phases[k, i]:
                     up = quaternion_matrix(world.sole_pose(side).orientation)[2, 2]
                     tilt[k, i] = float(np.arccos(np.clip(up, -1.0, 1.0)))
     finally:
         world.close()
-    return ReplayResult(controller, reference.times - reference.times[0], deviation, tilt)
+    return ReplayResult(controller, times - times[0], deviation, tilt)
 
 
 __all__ = ["CONTROLLERS", "Controller", "ReplayResult", "replay"]
