@@ -714,10 +714,16 @@ class _ProgressCallback(crocoddyl.CallbackAbstract):  # type: ignore[misc]
         self._costs: list[float] = []
         self.stalled = False
 
+    @property
+    def iterations(self) -> int:
+        """Iterations this stage ran (Box-FDDP calls its callbacks once per iteration; ``solver.iter`` is the
+        0-based index of the last one when it converges, so it counts one short)."""
+        return len(self._costs)
+
     def __call__(self, solver: crocoddyl.SolverAbstract) -> None:
         cost = float(solver.cost)
         if self._report is not None:
-            self._report(self._offset + int(solver.iter), cost, float(solver.stop))
+            self._report(self._offset + len(self._costs) + 1, cost, float(solver.stop))
         # a plateau of tiny line-search steps is not convergence: only full steps (the Newton step of the local
         # quadratic model) that no longer change the cost count
         self._costs.append(cost if solver.isFeasible and solver.stepLength >= 1.0 else math.nan)
@@ -879,9 +885,9 @@ def solve(
             else min(int(stage.get("max_iterations", 50)), settings.max_iterations - iterations)
         )
         solved = bool(solver.solve(xs, us, max(1, budget), feasible)) or monitor.stalled
-        iterations += int(solver.iter)
+        iterations += monitor.iterations
         stage_log.append(
-            {"scale": dict(stage.get("scale", {})), "iterations": int(solver.iter), "cost": float(solver.cost)}
+            {"scale": dict(stage.get("scale", {})), "iterations": monitor.iterations, "cost": float(solver.cost)}
         )
         xs, us, feasible = list(solver.xs), list(solver.us), bool(solver.isFeasible)
     solve_time = time.perf_counter() - t_solve
