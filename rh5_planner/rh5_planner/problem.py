@@ -8,10 +8,12 @@ Our own builders on Crocoddyl's public API (crocoddyl.utils.biped is not API and
   Euler, one knot per ``motion.dt``). Every touch-down is an ``ActionModelImpulseFwdDynamics`` node
   (``ImpulseModel6D`` on the landing soles, zero restitution) of zero duration.
 * Costs (``l = sum_c alpha_c Phi_c``, weights in config/costs.yaml), switched per motion as the paper's table:
-  foot pose tracking (``ResidualModelFramePlacement``), CoM tracking (``ResidualModelCoMPosition``), friction
-  cone + CoP (crocoddyl ``WrenchCone`` through ``ResidualModelContactWrenchCone`` with a bounded quadratic
-  barrier), joint position/velocity limits (``ResidualModelState`` + ``ActivationModelQuadraticBarrier``),
-  posture (``ResidualModelState`` weighted) and torque regularisation (``ResidualModelControl``).
+  foot pose tracking (``ResidualModelFramePlacement``; swing soles and touch-downs: the rigid contact holds the
+  soles in contact at the same targets, costs.yaml ``foot.track_stance``), CoM tracking
+  (``ResidualModelCoMPosition``), friction cone + CoP (crocoddyl ``WrenchCone`` through
+  ``ResidualModelContactWrenchCone`` with a bounded quadratic barrier), joint position/velocity limits
+  (``ResidualModelState`` + ``ActivationModelQuadraticBarrier``), posture (``ResidualModelState`` weighted) and
+  torque regularisation (``ResidualModelControl``).
 * Torque limits are the hard box of Box-FDDP: every action model's ``u_lb``/``u_ub`` are
   -/+ ``joint_limits().torque_max`` (the upper ends of the paper's configuration-dependent ranges).
 * Payload: ``motion.payload_kg_per_hand`` is added as a point mass at each hand TCP (``AL_TCP``/``AR_TCP``) to
@@ -412,9 +414,12 @@ def _costs(ct: _CostTerms, spec: KnotSpec, nu: int, *, terminal: bool = False) -
     costs = crocoddyl.CostModelSum(state, nu)
     if "foot" in ct.terms or spec.impulse:
         weight = cfg["foot"]["touchdown_weight"] if spec.impulse else cfg["foot"]["weight"]
+        stance = bool(cfg["foot"].get("track_stance", True))
         for side in SIDES:
             if spec.impulse and side not in spec.touchdown:
                 continue
+            if not spec.impulse and not stance and spec.in_contact(side):
+                continue  # the rigid contact (ContactModel6D, Baumgarte position term) holds this sole at the target
             target = pin.SE3(ct.foot_rotations[side], np.asarray(spec.feet[side]))
             residual = crocoddyl.ResidualModelFramePlacement(state, robot.foot_ids[side], target, nu)
             costs.addCost(f"foot_{side}", crocoddyl.CostModelResidual(state, residual), float(weight))
