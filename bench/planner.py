@@ -41,14 +41,16 @@ def talos_walk(nthreads: int, max_iterations: int) -> dict[str, float]:
     xs = [x0] * (problem.T + 1)
     us = problem.quasiStatic([x0] * problem.T)
     start = time.perf_counter()
-    solver.solve(xs, us, max_iterations, False)
+    converged = solver.solve(xs, us, max_iterations, False)
     elapsed = time.perf_counter() - start
-    iterations = max(1, solver.iter)
+    # iterations run, counted as the planner counts them (one per callback): solve() returns from inside its loop
+    # when it converges, with iter the 0-based index of that last iteration
+    iterations = solver.iter + 1 if converged else solver.iter
     return {
         "solve_time_s": elapsed,
-        "iterations": solver.iter,
+        "iterations": iterations,
         "knots": problem.T,
-        "ms_per_knot_iteration": 1e3 * elapsed / (problem.T * iterations),
+        "ms_per_knot_iteration": 1e3 * elapsed / (problem.T * max(1, iterations)),
         "converged": solver.stop <= 1e-7,
     }
 

@@ -15,15 +15,19 @@ targets are translations of the sole frame, whose orientation stays that of the 
 turning); times in s, lengths in m.
 
 Status (see ``VERIFIED_MOTIONS``; Box-FDDP with the costs.yaml continuation, measured on the 2-vCPU dev VM):
-walk_with_5kg_weights converges in ~47 iterations (~1.4 s), squat_with_5kg_weights ~11, fast_squats ~10,
+walk_with_5kg_weights converges in ~50 iterations (~1.4 s), squat_with_5kg_weights ~12, fast_squats ~11,
 vertical_jump_1cm ~110 (feasible: every limit holds with the motion_overrides joint-limit weight),
-one_leg_balancing ~31 and static_stepping ~27; all six are tested for convergence, contact stability (CoP in the
+one_leg_balancing ~35 and static_stepping ~30; all six are tested for convergence, contact stability (CoP in the
 50 % rectangle, friction, f_z > 0), joint/torque limits and foot drift. Design-analysis motions: vertical_jump_10cm
-converges (~156 iterations, soles 9.8 cm up) with the knees at ~2.6x, hips (Hip3) ~1.4x and BodyPitch ~1.02x
+converges (~136 iterations, soles 9.8 cm up) with the knees at ~2.6x, hips (Hip3) ~1.4x and BodyPitch ~1.02x
 their velocity limits, positions and torques inside (the paper: velocity infeasible, body pitch and knee).
 fast_walk_1m_s converges with the paper's cost set, which has no contact-wrench cone: its contacts pull on the
 ground (f_z < 0) and the swing soles stay low, so it is not physically consistent; with the cone switched on it
-does not converge in 300 iterations. obstacle_jumps: see bench/planner.py. The walk's CoP needs whole-body
+does not converge in 300 iterations (a linear inverted pendulum from rest to rest over its 0.7 m in 0.7 s needs the
+ZMP up to ~0.65 m beyond the 50 % sole region, against ~0.04 m for the 0.35 m/s walk). obstacle_jumps (with the
+costs.yaml posture term and joint-limit weight) converges in ~80 iterations with stable contacts, the knees at ~6.9x
+and Hip3 ~3.2x their velocity limits (the paper: velocity infeasible), positions and torques inside; the three
+jumps are in bench/planner.py, one of them in the tests. The walk's CoP needs whole-body
 angular momentum: a linear inverted pendulum at RH5's CoM height (1.03 m) cannot go 0.5 m from rest to rest in
 1.5 s with the CoP within +-45 mm of the soles, so its solution sits on the CoP bound for much of the motion.
 

@@ -8,10 +8,12 @@ Our own builders on Crocoddyl's public API (crocoddyl.utils.biped is not API and
   Euler, one knot per ``motion.dt``). Every touch-down is an ``ActionModelImpulseFwdDynamics`` node
   (``ImpulseModel6D`` on the landing soles, zero restitution) of zero duration.
 * Costs (``l = sum_c alpha_c Phi_c``, weights in config/costs.yaml), switched per motion as the paper's table:
-  foot pose tracking (``ResidualModelFramePlacement``), CoM tracking (``ResidualModelCoMPosition``), friction
-  cone + CoP (crocoddyl ``WrenchCone`` through ``ResidualModelContactWrenchCone`` with a bounded quadratic
-  barrier), joint position/velocity limits (``ResidualModelState`` + ``ActivationModelQuadraticBarrier``),
-  posture (``ResidualModelState`` weighted) and torque regularisation (``ResidualModelControl``).
+  foot pose tracking (``ResidualModelFramePlacement``; swing soles and touch-downs: the rigid contact holds the
+  soles in contact at the same targets, costs.yaml ``foot.track_stance``), CoM tracking
+  (``ResidualModelCoMPosition``), friction cone + CoP (crocoddyl ``WrenchCone`` through
+  ``ResidualModelContactWrenchCone`` with a bounded quadratic barrier), joint position/velocity limits
+  (``ResidualModelState`` + ``ActivationModelQuadraticBarrier``), posture (``ResidualModelState`` weighted) and
+  torque regularisation (``ResidualModelControl``).
 * Torque limits are the hard box of Box-FDDP: every action model's ``u_lb``/``u_ub`` are
   -/+ ``joint_limits().torque_max`` (the upper ends of the paper's configuration-dependent ranges).
 * Payload: ``motion.payload_kg_per_hand`` is added as a point mass at each hand TCP (``AL_TCP``/``AR_TCP``) to
@@ -412,9 +414,12 @@ def _costs(ct: _CostTerms, spec: KnotSpec, nu: int, *, terminal: bool = False) -
     costs = crocoddyl.CostModelSum(state, nu)
     if "foot" in ct.terms or spec.impulse:
         weight = cfg["foot"]["touchdown_weight"] if spec.impulse else cfg["foot"]["weight"]
+        stance = bool(cfg["foot"].get("track_stance", True))
         for side in SIDES:
             if spec.impulse and side not in spec.touchdown:
                 continue
+            if not spec.impulse and not stance and spec.in_contact(side):
+                continue  # the rigid contact (ContactModel6D, Baumgarte position term) holds this sole at the target
             target = pin.SE3(ct.foot_rotations[side], np.asarray(spec.feet[side]))
             residual = crocoddyl.ResidualModelFramePlacement(state, robot.foot_ids[side], target, nu)
             costs.addCost(f"foot_{side}", crocoddyl.CostModelResidual(state, residual), float(weight))
@@ -714,10 +719,16 @@ class _ProgressCallback(crocoddyl.CallbackAbstract):  # type: ignore[misc]
         self._costs: list[float] = []
         self.stalled = False
 
+    @property
+    def iterations(self) -> int:
+        """Iterations this stage ran (Box-FDDP calls its callbacks once per iteration; ``solver.iter`` is the
+        0-based index of the last one when it converges, so it counts one short)."""
+        return len(self._costs)
+
     def __call__(self, solver: crocoddyl.SolverAbstract) -> None:
         cost = float(solver.cost)
         if self._report is not None:
-            self._report(self._offset + int(solver.iter), cost, float(solver.stop))
+            self._report(self._offset + len(self._costs) + 1, cost, float(solver.stop))
         # a plateau of tiny line-search steps is not convergence: only full steps (the Newton step of the local
         # quadratic model) that no longer change the cost count
         self._costs.append(cost if solver.isFeasible and solver.stepLength >= 1.0 else math.nan)
@@ -879,9 +890,9 @@ def solve(
             else min(int(stage.get("max_iterations", 50)), settings.max_iterations - iterations)
         )
         solved = bool(solver.solve(xs, us, max(1, budget), feasible)) or monitor.stalled
-        iterations += int(solver.iter)
+        iterations += monitor.iterations
         stage_log.append(
-            {"scale": dict(stage.get("scale", {})), "iterations": int(solver.iter), "cost": float(solver.cost)}
+            {"scale": dict(stage.get("scale", {})), "iterations": monitor.iterations, "cost": float(solver.cost)}
         )
         xs, us, feasible = list(solver.xs), list(solver.us), bool(solver.isFeasible)
     solve_time = time.perf_counter() - t_solve

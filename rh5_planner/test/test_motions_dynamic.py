@@ -33,6 +33,8 @@ JUMP = get_motion("vertical_jump_1cm", {"total_time_s": 0.6})  # the paper's 0.9
 SHORT_PHASES = [["hold", 0.1], ["shift_left", 0.8], ["lift", 0.5], ["lower", 0.5], ["center", 0.6]]
 BALANCING = get_motion("one_leg_balancing", {"phases": SHORT_PHASES, "dt": 0.05})
 STEPPING = get_motion("static_stepping", {"phases": SHORT_PHASES, "dt": 0.05})
+# one of the three obstacle jumps (0.25 m sole clearance, 0.2 m forward, 10 ms knots); all three in bench/planner.py
+OBSTACLE_JUMP = get_motion("obstacle_jumps", {"total_time_s": 0.9, "length_m": 0.2, "n_jumps": 1})
 
 
 @pytest.fixture(scope="module")
@@ -131,6 +133,30 @@ def test_jump_reaches_its_height(jump: PlanResult) -> None:
     assert clearance == pytest.approx(JUMP.height_m, abs=0.003)  # measured 0.009 of 0.01
     # the horizontal momentum stays ~0 (vertical jump): the CoM lands where it took off
     assert np.abs(jump.com[-1, :2] - jump.com[0, :2]).max() < 0.01
+
+
+def test_obstacle_jump_converges_with_stable_contacts() -> None:
+    """A 0.25 m obstacle jump converges with the wrench cone on: every contact pushes (f_z > 0) inside the friction
+    pyramid with the CoP in the 50 % rectangle; the soles clear 0.25 m and land 0.2 m ahead without sliding.
+    Velocity limits are not kept (the paper's feasibility table: the knees need ~7x theirs)."""
+    plan = solve(OBSTACLE_JUMP, SolverSettings(max_iterations=150))
+    assert plan.converged, plan.solver_log
+    assert plan.solver_log["iterations"] < 130
+    contact = plan.contact_phases
+    fz = plan.wrenches[..., 2][contact]
+    assert fz.min() > 0.0
+    tangential = np.linalg.norm(plan.wrenches[..., :2][contact], axis=1)
+    assert np.all(tangential <= MU * fz + 1.0)
+    assert np.all(np.abs(plan.cop[contact]) <= COP_HALF)
+    nq = plan.robot.model.nq
+    q = plan.xs[:, 7:nq]
+    assert np.all((q >= plan.robot.q_lower - 1e-9) & (q <= plan.robot.q_upper + 1e-9))
+    assert np.all(np.abs(plan.us) <= plan.robot.tau_max + 1e-9)
+    soles = _sole_positions(plan)
+    clearance = soles[:, :, 2].max(axis=0) - soles[0, :, 2]
+    np.testing.assert_allclose(clearance, OBSTACLE_JUMP.height_m, atol=0.01)  # measured 0.245
+    np.testing.assert_allclose(soles[-1, :, 0] - soles[0, :, 0], OBSTACLE_JUMP.length_m, atol=0.005)
+    test_feet_stay_in_contact(plan)
 
 
 def test_balancing_lifts_the_right_foot_over_the_left(balancing: PlanResult, stepping: PlanResult) -> None:
