@@ -15,7 +15,7 @@ targets are translations of the sole frame, whose orientation stays that of the 
 turning); times in s, lengths in m.
 
 Status (see ``VERIFIED_MOTIONS``; Box-FDDP with the costs.yaml continuation, measured on the 2-vCPU dev VM):
-walk_with_5kg_weights converges in ~50 iterations (~1.4 s), squat_with_5kg_weights ~12, fast_squats ~11,
+walk_with_5kg_weights (with its 0.5 s rest) ~42 iterations (~1.4 s), squat_with_5kg_weights ~12, fast_squats ~11,
 vertical_jump_1cm ~110 (feasible: every limit holds with the motion_overrides joint-limit weight),
 one_leg_balancing ~35 and static_stepping ~30; all six are tested for convergence, contact stability (CoP in the
 50 % rectangle, friction, f_z > 0), joint/torque limits and foot drift. Design-analysis motions: vertical_jump_10cm
