@@ -15,8 +15,8 @@ targets are translations of the sole frame, whose orientation stays that of the 
 turning); times in s, lengths in m.
 
 Status (see ``VERIFIED_MOTIONS``; Box-FDDP with the costs.yaml continuation, measured on the 2-vCPU dev VM):
-walk_with_5kg_weights (with its 0.5 s rest) ~42 iterations (~1.4 s), squat_with_5kg_weights ~12, fast_squats ~11,
-vertical_jump_1cm ~110 (feasible: every limit holds with the motion_overrides joint-limit weight),
+walk_with_5kg_weights (with its 0.5 s rest) converges in ~42 iterations (~1.4 s), squat_with_5kg_weights ~12,
+fast_squats ~11, vertical_jump_1cm ~110 (feasible: every limit holds with the motion_overrides joint-limit weight),
 one_leg_balancing ~35 and static_stepping ~30; all six are tested for convergence, contact stability (CoP in the
 50 % rectangle, friction, f_z > 0), joint/torque limits and foot drift. Design-analysis motions: vertical_jump_10cm
 converges (~136 iterations, soles 9.8 cm up) with the knees at ~2.6x, hips (Hip3) ~1.4x and BodyPitch ~1.02x
