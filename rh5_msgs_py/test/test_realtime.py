@@ -82,7 +82,9 @@ def test_overrunning_steps_are_counted_and_skipped_not_burst() -> None:
     loop.stop()
     assert loop.stats().deadline_misses >= 10
     gaps = [b - a for a, b in itertools.pairwise(calls[5:13])]
-    assert min(gaps) > 500_000  # no catch-up burst after the overrun
+    # No catch-up burst after the overrun (that would be ten gaps near zero); one late wake-up of a loaded
+    # machine may shorten one gap (seen in CI: 255 us after a call that ran 750 us late).
+    assert sum(gap < 500_000 for gap in gaps) <= 1, gaps
 
 
 def test_rate_must_be_positive() -> None:
