@@ -2,7 +2,7 @@
 
 A dedicated loop thread (rh5_msgs_py.realtime.DeadlineLoop) runs StabilizerCore every
 millisecond and publishes ``joint_commands`` in every active state; ROS callbacks only
-validate inputs and hand them over through lock-protected latest-value slots. Services
+validate inputs and hand them over through latest-value slots (rh5_msgs_py.realtime.LatestValue). Services
 ``~/start``, ``~/stop`` and ``~/hold`` answer with the reason when they refuse.
 """
 

@@ -4,7 +4,7 @@ rclpy timers drop ticks at 1 kHz here (design/ros2_wheels.md, 3d), so each perio
 runs in its own thread on absolute deadlines in integer nanoseconds: advance the deadline
 by one period, sleep until shortly before it, then spin the rest (``time.sleep`` alone
 overshoots by 50-100 us). ROS callbacks hand data to the loop through a ``LatestValue``:
-one lock-protected slot that the loop reads without ever waiting for a writer.
+one slot that the loop reads without ever waiting for a writer.
 """
 
 from __future__ import annotations
@@ -30,29 +30,28 @@ STATS_WINDOW = 1000  # cycles kept for the jitter percentiles (1 s at 1 kHz)
 
 
 class LatestValue(Generic[T]):
-    """One slot holding the newest value and when it was written; readers never block on writers."""
+    """One slot holding the newest value and when it was written; readers never wait and never miss it.
+
+    The slot is one immutable (value, stamp, version) tuple that ``set`` replaces in a single reference
+    assignment (atomic under the GIL), so a reader always gets the last complete write. Writers take a lock
+    among themselves only (the version count). A reader that found a writer's lock taken used to get nothing
+    for that tick, which the stabilizer read as stale joint_states and held the robot (seen in a loaded
+    fast_squats run) and the driver as a missing command (one HOLD cycle to the boards).
+    """
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        self._value: T | None = None
-        self._stamp_ns = 0
-        self._version = 0
+        self._slot: tuple[T | None, int, int] = (None, 0, 0)
 
     def set(self, value: T, stamp_ns: int | None = None) -> None:
         """Store ``value`` (an immutable snapshot), stamped now unless ``stamp_ns`` is given (monotonic ns)."""
         stamp = time.monotonic_ns() if stamp_ns is None else stamp_ns
         with self._lock:
-            self._value, self._stamp_ns = value, stamp
-            self._version += 1
+            self._slot = (value, stamp, self._slot[2] + 1)
 
     def try_get(self) -> tuple[T | None, int, int]:
-        """(value, stamp_ns, version) without blocking; a busy slot yields (None, 0, -1) for this tick."""
-        if not self._lock.acquire(blocking=False):
-            return None, 0, -1
-        try:
-            return self._value, self._stamp_ns, self._version
-        finally:
-            self._lock.release()
+        """(value, stamp_ns, version) of the last complete write, without blocking (version 0: none yet)."""
+        return self._slot
 
     def age_ns(self, now_ns: int | None = None) -> int | None:
         """How old the stored value is (None when nothing was ever stored)."""

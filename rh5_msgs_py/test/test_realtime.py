@@ -23,11 +23,39 @@ def test_latest_value_keeps_the_newest_and_its_stamp() -> None:
 
 def test_latest_value_reader_never_blocks_on_a_writer() -> None:
     slot: LatestValue[int] = LatestValue()
-    slot.set(7)
-    with slot._lock:  # a writer in the middle of set()
+    slot.set(7, stamp_ns=5)
+    with slot._lock:  # another writer in the middle of set()
         start = time.perf_counter()
-        assert slot.try_get() == (None, 0, -1)
+        assert slot.try_get() == (7, 5, 1)  # the last complete write, not "nothing this tick"
         assert time.perf_counter() - start < 0.01
+
+
+def test_latest_value_readers_see_every_write_whole_under_contention() -> None:
+    slot: LatestValue[tuple[int, int]] = LatestValue()
+    stop = threading.Event()
+
+    def writer() -> None:
+        n = 0
+        while not stop.is_set():
+            n += 1
+            slot.set((n, -n), stamp_ns=n)
+
+    threads = [threading.Thread(target=writer) for _ in range(2)]
+    for thread in threads:
+        thread.start()
+    try:
+        last_version = 0
+        for _ in range(20_000):
+            value, stamp, version = slot.try_get()
+            assert version >= last_version
+            if version:
+                assert value is not None
+                assert value == (stamp, -stamp)  # never a torn or missing value
+            last_version = version
+    finally:
+        stop.set()
+        for thread in threads:
+            thread.join()
 
 
 def test_loop_timer_statistics_from_synthetic_wake_ups() -> None:
