@@ -8,8 +8,9 @@ Three controllers track the 1 kHz reference (the planner's interpolation) in joi
 * ``"joint_pd"``: the same idea on the suite's physics, which carries the actuators' reflected inertia as
   armature on the child links (see physics.py): explicit torques tau = Kp (q* - q) + Kd (v* - v), each joint's
   gains set for a 20 Hz, 0.7-damped loop on its inertia at the start pose (base free, armature included).
-* ``"boards"``: the suite's chain in lockstep, mapper -> the boards' cascade (POSITION_FF) -> tau = J^T f, as
-  `rh5 experiment` runs it through the nodes, minus ROS, timing and the stabiliser.
+* ``"boards"``: the suite's chain in lockstep, mapper (commands clamped to the actuator limits, as the mapper
+  node does) -> the boards' cascade (POSITION_FF) -> tau = J^T f, as `rh5 experiment` runs it through the
+  nodes, minus ROS, timing and the stabiliser's feedback.
 
 All optionally feed the planned torques forward (not ``rigid_pd``: PyBullet's motors take no feed-forward).
 The result holds the base deviation from the plan (the settled start offset removed) during the motion and
@@ -109,7 +110,7 @@ def _setup(controller: Controller, q0: FloatArray, friction: float, payload: flo
         track = np.full(NUM_ACTUATORS, int(Mode.POSITION_FF))
 
         def advance(q: FloatArray, v: FloatArray, tau: FloatArray) -> None:
-            target = mapper.to_actuators(q, v, tau=tau)
+            target, _ = mapper.clamp(mapper.to_actuators(q, v, tau=tau))  # as the mapper node sends it
             coupled.step(PERIOD_S, track, target.position, target.velocity, target.effort)
 
         return coupled.world, advance
