@@ -257,7 +257,8 @@ class WalkMotion(MotionSpec):
     ``support_knots`` double-support knots after each step and equal swing phases; every touch-down is an
     impulse node. ``rest_s`` more of double support follow the walk (the horizon is ``total_time_s + rest_s``)
     so that the robot can come to rest: within ``final_support_s`` alone the CoP region cannot stop the CoM
-    (the 5 kg walk ended at 0.03 m/s with its CoP on the toes, and toppled after playback on PyBullet).
+    (the 5 kg walk ended at 0.03 m/s with its CoP on the toes, and toppled after playback on the suite's
+    PyBullet physics).
     ``track_com`` adds a predefined CoM path (linear in x from the initial CoM to the initial CoM + length,
     middle of the feet in y) as a CoM cost and as the warm start: the paper's remedy above 0.35 m/s.
     """
