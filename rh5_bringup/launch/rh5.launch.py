@@ -19,7 +19,7 @@ ARGUMENTS = {'sim': {'default': 'kinematic',
                                                 'playback_clock': 'ros',
                                                 'rest_velocity_rad_s': 0.25,
                                                 'state_timeout_s': 0.5},
-                                 'driver': {'board_silence_timeout_s': 0.5}}}}}
+                                 'driver': {'board_silence_timeout_s': 0.5, 'command_timeout_s': 0.5}}}}}
 """Launch arguments: name -> default, choices, description, the node parameter each sets, and the further
 parameters some of its values imply (value -> node -> parameters)."""
 
