@@ -21,10 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from rh5_bringup.report.figures import replay_figure
+from rh5_bringup.report.metrics import BASE_BAND_M
 from rh5_bringup.sim.replay import CONTROLLERS, replay
 from rh5_msgs_py.trajectory_file import TrajectoryData, load_trajectory
-
-PAPER_BAND_MM = {"x": (-10.0, 10.0), "y": (-10.0, 10.0), "z": (-5.0, 5.0)}
+from rh5_planner.limit_analysis import FOOT_SIZE_M
 
 
 def plan_walk() -> TrajectoryData:
@@ -42,10 +42,14 @@ def plan_walk() -> TrajectoryData:
     return result.to_trajectory_data()
 
 
-def constraint_margins(data: TrajectoryData, mu: float = 0.7, region: float = 0.5) -> str:
+def constraint_margins(data: TrajectoryData) -> str:
     """How much of the plan's contact time sits at the CoP region's edge, and the largest friction use."""
+    from rh5_planner.problem import load_cost_config  # noqa: PLC0415 - the planner's cone settings
+
+    cone = load_cost_config()["contact_stability"]
+    mu, region = float(cone["mu"]), float(cone["cop_fraction"])
     cop = data.cop[data.contact_phases]  # (contacts, 2)
-    half = region * np.array([0.1, 0.04])  # the 200 x 80 mm foot, CoP region as a fraction of it
+    half = 0.5 * region * np.array(FOOT_SIZE_M)
     at_edge = (np.abs(cop) >= 0.9 * half).any(axis=1)
     wrench = data.contact_wrenches[data.contact_phases]
     loaded = wrench[:, 2] > 1.0
@@ -58,7 +62,8 @@ def constraint_margins(data: TrajectoryData, mu: float = 0.7, region: float = 0.
 
 def _band(dev_mm: np.ndarray) -> str:
     inside = all(
-        lo >= PAPER_BAND_MM[ax][0] and hi <= PAPER_BAND_MM[ax][1] for ax, (lo, hi) in zip("xyz", dev_mm, strict=True)
+        lo >= 1e3 * BASE_BAND_M[ax][0] and hi <= 1e3 * BASE_BAND_M[ax][1]
+        for ax, (lo, hi) in zip("xyz", dev_mm, strict=True)
     )
     return "inside" if inside else "outside"
 

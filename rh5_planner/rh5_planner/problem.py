@@ -68,6 +68,7 @@ from rh5_hyrodyn_mapper.model import build_model, joint_limits, model_hash, q_in
 from rh5_msgs_py.names import FOOT_FRAMES, HAND_FRAMES, JOINT_GROUPS, JOINT_NAMES
 from rh5_msgs_py.trajectory_file import TrajectoryData, save_trajectory
 
+from .limit_analysis import FOOT_SIZE_M
 from .motions import SIDES, KnotSpec, MotionSpec, Reference
 
 __all__ = [
@@ -91,8 +92,6 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 COSTS_FILE: Final = Path(__file__).parent / "config" / "costs.yaml"
-FOOT_SIZE_M: Final = (0.200, 0.080)
-"""Sole support rectangle, length (x) x width (y) (rh5_paper_facts.yaml legs.foot.support_polygon_m)."""
 ProgressCallback = Callable[[int, float, float], None]
 """``callback(iteration, cost, stop)`` called after every Box-FDDP iteration."""
 

@@ -114,26 +114,34 @@ def paper_tracking_figure(analysis: Analysis, path: Path) -> Path:
     return tracking_figure(analysis, path, PAPER_ACTUATORS + PAPER_JOINTS)
 
 
+def _deviation_axes(fig: Figure, curves: Mapping[str, tuple[FloatArray, FloatArray]]) -> Sequence[Axes]:
+    """Three stacked axes (x, y, z in mm over trajectory time) with the paper's bands and each curve
+    (label -> (times [s], (M, 3) deviation [m])); legends and titles are the caller's."""
+    axes = fig.subplots(3, 1, sharex=True)
+    for i, (ax, axis) in enumerate(zip(axes, "xyz", strict=True)):
+        lo, hi = BASE_BAND_M[axis]
+        ax.axhspan(
+            lo * 1e3, hi * 1e3, color="tab:green", alpha=0.12, label=f"paper band [{lo * 1e3:+.0f}, {hi * 1e3:+.0f}] mm"
+        )
+        for label, (times, deviation) in curves.items():
+            cut = _thin(len(times))
+            ax.plot(times[cut], deviation[cut, i] * 1e3, linewidth=1.0, label=label.format(axis=axis))
+        ax.set_ylabel(f"{axis} [mm]")
+        ax.grid(True, alpha=0.3)
+    axes[-1].set_xlabel("trajectory time [s]")
+    return axes
+
+
 def base_figure(analysis: Analysis, path: Path) -> Path | None:
     """Floating-base deviation x/y/z (mm) over trajectory time with the paper's bands; None if not computable."""
     base = analysis.base
     if base is None:
         return None
     fig = _new_figure(8.0, 7.0)
-    axes = fig.subplots(3, 1, sharex=True)
-    cut = _thin(len(base.tau))
-    for i, (ax, axis) in enumerate(zip(axes, "xyz", strict=True)):
-        lo, hi = BASE_BAND_M[axis]
-        ax.axhspan(
-            lo * 1e3, hi * 1e3, color="tab:green", alpha=0.12, label=f"paper band [{lo * 1e3:+.0f}, {hi * 1e3:+.0f}] mm"
-        )
-        ax.plot(base.tau[cut], base.deviation[cut, i] * 1e3, color="tab:blue", linewidth=1.0, label=f"{axis} deviation")
+    for ax in _deviation_axes(fig, {"{axis} deviation": (base.tau, base.deviation)}):
         ax.axvline(base.motion_end, color="0.5", linestyle=":", linewidth=1.0, label="end of motion")
         _mark_fall(ax, analysis)
-        ax.set_ylabel(f"{axis} [mm]")
-        ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8, loc="best")
-    axes[-1].set_xlabel("trajectory time [s]")
     fig.suptitle("Floating base: measured minus planned position", fontsize=10)
     fig.savefig(path, dpi=DPI)
     return path
@@ -143,16 +151,8 @@ def replay_figure(curves: Mapping[str, tuple[FloatArray, FloatArray]], path: Pat
     """Base deviation x/y/z (mm) of several in-process replays (label -> (times [s], (M, 3) deviation [m])) over
     trajectory time, with the paper's bands (bench/walk_pybullet.py)."""
     fig = _new_figure(8.0, 7.0)
-    axes = fig.subplots(3, 1, sharex=True)
-    for i, (ax, axis) in enumerate(zip(axes, "xyz", strict=True)):
-        lo, hi = BASE_BAND_M[axis]
-        ax.axhspan(lo * 1e3, hi * 1e3, color="tab:green", alpha=0.12, label="paper band")
-        for label, (times, deviation) in curves.items():
-            ax.plot(times, deviation[:, i] * 1e3, linewidth=1.0, label=label)
-        ax.set_ylabel(f"{axis} [mm]")
-        ax.grid(True, alpha=0.3)
+    for ax in _deviation_axes(fig, curves):
         ax.legend(fontsize=8, loc="best")
-    axes[-1].set_xlabel("trajectory time [s]")
     fig.suptitle(title, fontsize=10)
     fig.savefig(path, dpi=DPI)
     return path
