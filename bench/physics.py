@@ -39,7 +39,7 @@ def main() -> None:
         t1 = clock()
         tau = coupled.torques(measured.force)
         t2 = clock()
-        world.step(tau, coupled.v)
+        world.step(tau, (coupled.q, coupled.v))
         t3 = clock()
         coupled._read()  # the joint read and map: the other half of the mapper share
         t4 = clock()

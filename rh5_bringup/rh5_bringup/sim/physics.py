@@ -27,11 +27,15 @@ How the two plants couple (the physics is the truth, the bank is the boards' con
 The reflected motor inertia M (rotor J N^2, up to 300 kg at a ball screw) dominates the light links: a
 velocity loop tuned for M (kp = M w) on a wrist whose own inertia is 40 times smaller is unstable at any
 sample rate above ~1/(2 M / kp). PyBullet has no joint armature, so it is added to the inertia of each
-joint's child link about the joint axis: A_j = sum_i M_i J_ij^2 at the nominal standing pose (the diagonal of
-J^T M J; the symmetric 2-DOF units make it diagonal there). Exact in the joint's own inertia, which is what
-the loops see; too large in the link's coupling to the rotation of its parents about the same axis (a real
-rotor spins N times faster with 1/N^2 of the inertia); Bullet also needs a physical tensor, so the least
-inertia normal to the axis that satisfies the triangle inequality is added too (`_valid_inertia`). The
+joint's child link about the joint axis: A_j = sum_i M_i J_ij^2 at the starting pose (the diagonal of
+J^T M J; the symmetric 2-DOF units make it diagonal there), which keeps the stiff loops stable inside Bullet's
+implicit step. Bullet also needs a physical tensor, so the least inertia normal to the axis that satisfies the
+triangle inequality is added too (`_valid_inertia`). On a link that inertia would also resist every absolute
+rotation of the link (a real rotor spins N times faster with 1/N^2 of the inertia); `ArmatureCorrection`
+(sim/armature.py) applies, every step, the generalized force that takes that part out again, so the robot moves
+as rigid links with A on the joint coordinates (measured: one step matches that model to 5e-6; without it the
+base-free standing pose's pitch inertia is more than doubled and the planned walk played with joint PD lagged
+45 mm instead of 3). The
 boards tuned for the motor alone (kp = M w) make the light rotary joints ring (standing in HOLD: wrist roll
 0.25 rad/s RMS, elbows 0.11); `loaded_params` (``tune_to_load``, the node's default) tunes each board to the
 inertia it drives, as at commissioning: the ringing drops to <= 0.06 rad/s RMS (peaks 0.12, body roll and
@@ -68,6 +72,7 @@ import numpy.typing as npt
 import pybullet as pb
 
 from rh5_bringup.sim.actuators import ActuatorBank, ActuatorMeasurement, ActuatorParams
+from rh5_bringup.sim.armature import ArmatureCorrection
 from rh5_hyrodyn_mapper.mapping import KinematicsError, RobotMapper, robot_mapper
 from rh5_hyrodyn_mapper.model.urdf import generate_urdf, load_parameters
 from rh5_msgs_py.names import BASE_FRAME, FOOT_FRAMES, HAND_FRAMES, JOINT_NAMES, NUM_JOINTS
@@ -258,6 +263,17 @@ def levelling_quaternion(up: FloatArray) -> FloatArray:
 # The world
 
 
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    """a x b of two 3-vectors (np.cross costs ~20 us a call)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def _free_base(full: FloatArray) -> FloatArray:
+    """The joint block of a floating-base mass matrix (base first, 6 rows) with the base free: its Schur complement."""
+    base, coupling, joints = full[:6, :6], full[:6, 6:], full[6:, 6:]
+    return joints - coupling.T @ np.linalg.solve(base, coupling)
+
+
 class PhysicsWorld:
     """RH5 on flat ground in its own PyBullet DIRECT client; ``close`` (or ``with``) disconnects."""
 
@@ -293,6 +309,17 @@ class PhysicsWorld:
                 )
             self._index_links()
             self._configure()
+            self.armature = (
+                ArmatureCorrection(
+                    physics_urdf(None, hand_payload_kg),
+                    physics_urdf(self.dynamics.armature, hand_payload_kg),
+                    self.dynamics.armature,
+                    {FOOT_FRAMES[side]: self._corner_names[side] for side in ("left", "right")},
+                )
+                if self.dynamics.armature.any()
+                else None
+            )
+            """Turns the armature on the child links into armature on the joints (sim/armature.py); None: rigid."""
         except BaseException:
             pb.disconnect(physicsClientId=cid)
             raise
@@ -327,6 +354,8 @@ class PhysicsWorld:
             "left": [link_of[n] for n in corners[:4]],
             "right": [link_of[n] for n in corners[4:]],
         }
+        self._corner_names = {"left": corners[:4], "right": corners[4:]}
+        self._corner_links = [link_of[n] for n in corners]  # left foot first, as the armature correction's flags
         self._foot_of_link = {link: side for side, links in self.contact_links.items() for link in links}
         info = pb.getDynamicsInfo(robot, -1, physicsClientId=cid)
         self._base_inertial = (info[3], info[4])  # the COM frame in the root link frame
@@ -456,15 +485,17 @@ class PhysicsWorld:
         return Pose(np.asarray(pos), np.asarray(orn))
 
     def mass_matrix(self, q: FloatArray) -> FloatArray:
-        """Joint-space mass matrix (32 x 32, JOINT_NAMES order, armature included) at ``q`` with the base free:
-        the Schur complement of the base block of PyBullet's 38 x 38 floating-base matrix."""
+        """Joint-space mass matrix (32 x 32, JOINT_NAMES order, armature on the joints included) at ``q`` with the
+        base free: the Schur complement of the base block of the floating-base matrix (the intended model's when
+        the world has armature, else PyBullet's)."""
+        if self.armature is not None:
+            full = self.armature.mass_matrix(q)
+            return _free_base(full)[np.ix_(self.armature.joint_v - 6, self.armature.joint_v - 6)]
         rank = np.argsort(np.argsort(self.joint_indices))  # each joint's place in PyBullet's dof order
         ordered = np.empty(NUM_JOINTS)
         ordered[rank] = q
         full = np.asarray(pb.calculateMassMatrix(self.robot, ordered.tolist(), physicsClientId=self._client))
-        base, coupling, joints = full[:6, :6], full[:6, 6:], full[6:, 6:]
-        free = joints - coupling.T @ np.linalg.solve(base, coupling)
-        return free[np.ix_(rank, rank)]
+        return _free_base(full)[np.ix_(rank, rank)]
 
     @property
     def time(self) -> float:
@@ -482,20 +513,47 @@ class PhysicsWorld:
         """Joint torques [Nm] (JOINT_NAMES order) applied from the next step on."""
         self._tau = np.asarray(tau, dtype=np.float64).tolist()
 
-    def step(self, tau: FloatArray | None = None, velocity: FloatArray | None = None) -> None:
-        """Advance one time step with ``tau`` (or the last torques) minus the viscous term at ``velocity`` (the
-        joint velocities if the caller has them, else read here)."""
+    def step(self, tau: FloatArray | None = None, state: tuple[FloatArray, FloatArray] | None = None) -> None:
+        """Advance one time step with ``tau`` (or the last torques) minus the viscous term, at the joint ``state``
+        (positions, velocities: the caller's if it has them, else read here); with armature, plus the forces
+        that move the links as rigid links with armature on the joints (`ArmatureCorrection`)."""
         cid = self._client
         if tau is not None:
             self._tau = np.asarray(tau, dtype=np.float64).tolist()
         torques = self._tau
-        if self.dynamics.viscous.any():
-            v = self.joint_state()[1] if velocity is None else velocity
-            torques = (np.asarray(torques) - self.dynamics.viscous * v).tolist()
+        if self.dynamics.viscous.any() or self.armature is not None:
+            q, v = self.joint_state() if state is None else state
+            torques = np.asarray(torques) - self.dynamics.viscous * v
+            if self.armature is not None:
+                torques = torques + self._apply_armature(torques, q, v)
+            torques = torques.tolist()
         robot, joints = self.robot, self.joint_indices
         pb.setJointMotorControlArray(robot, joints, pb.TORQUE_CONTROL, forces=torques, physicsClientId=cid)
         pb.stepSimulation(physicsClientId=cid)
         self.steps += 1
+
+    def _apply_armature(self, tau: FloatArray, q: FloatArray, v: FloatArray) -> FloatArray:
+        """Apply the armature correction's base wrench for the next step; return its joint torques."""
+        cid, robot, armature = self._client, self.robot, self.armature
+        assert armature is not None
+        com, com_orientation = pb.getBasePositionAndOrientation(robot, physicsClientId=cid)
+        position, orientation = pb.multiplyTransforms(
+            com, com_orientation, *self._base_inertial_inv, physicsClientId=cid
+        )
+        rotation = quaternion_matrix(orientation)
+        linear, angular = (np.asarray(w) for w in pb.getBaseVelocity(robot, physicsClientId=cid))
+        root_linear = linear + _cross(angular, np.subtract(position, com))
+        q_full = armature.configuration(np.asarray(position), np.asarray(orientation), q)
+        v_full = armature.velocity(rotation, root_linear, angular, v)
+        touching = {point[3] for point in pb.getContactPoints(bodyA=robot, bodyB=self.ground, physicsClientId=cid)}
+        contacts = [link in touching for link in self._corner_links]
+        acceleration = armature.predict(q_full, v_full, tau, contacts, held=self._support is not None)
+        joint_torque, base_force, base_torque = armature.split(armature.correction(q_full, v_full, acceleration))
+        pb.applyExternalForce(
+            robot, -1, (rotation @ base_force).tolist(), position, pb.WORLD_FRAME, physicsClientId=cid
+        )
+        pb.applyExternalTorque(robot, -1, (rotation @ base_torque).tolist(), pb.WORLD_FRAME, physicsClientId=cid)
+        return joint_torque
 
     def step_position_motors(
         self, q: FloatArray, v: FloatArray, position_gain: float, velocity_gain: float, max_torque: FloatArray
@@ -694,7 +752,7 @@ class PhysicsActuatorBank:
             except (KinematicsError, ValueError, FloatingPointError):
                 self.counts.kinematics_errors += 1
                 tau = self._tau
-            self.world.step(tau, self.v)
+            self.world.step(tau, (self.q, self.v))
             self._read()
         self.counts.physics_steps += taken
         self.counts.dropped_steps += steps - taken

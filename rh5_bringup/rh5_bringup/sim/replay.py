@@ -5,9 +5,9 @@ Three controllers track the 1 kHz reference (the planner's interpolation) in joi
 * ``"rigid_pd"``: the paper's setup. The rigid-body RH5 (no actuator model) with PyBullet's own joint position
   motors: an implicit PD inside the constraint solver (position gain 0.1, velocity gain 1), torques limited to
   the joint limits.
-* ``"joint_pd"``: the same idea on the suite's physics, which carries the actuators' reflected inertia as
-  armature on the child links (see physics.py): explicit torques tau = Kp (q* - q) + Kd (v* - v), each joint's
-  gains set for a 20 Hz, 0.7-damped loop on its inertia at the start pose (base free, armature included).
+* ``"joint_pd"``: the same idea on the suite's physics, which carries the actuators' reflected inertia as joint
+  armature (see physics.py): explicit torques tau = Kp (q* - q) + Kd (v* - v), each joint's gains set for a
+  20 Hz, 0.7-damped loop on its inertia at the start pose (base free, armature included).
 * ``"boards"``: the suite's chain in lockstep, mapper (commands clamped to the actuator limits, as the mapper
   node does) -> the boards' cascade (POSITION_FF) -> tau = J^T f, as `rh5 experiment` runs it through the
   nodes, minus ROS, timing and the stabiliser's feedback.
@@ -97,7 +97,7 @@ def _joint_pd(world: PhysicsWorld, q0: FloatArray) -> Advance:
     def advance(q: FloatArray, v: FloatArray, tau: FloatArray) -> None:
         for _ in range(substeps):
             measured_q, measured_v = world.joint_state()
-            world.step(kp * (q - measured_q) + kd * (v - measured_v) + tau, measured_v)
+            world.step(kp * (q - measured_q) + kd * (v - measured_v) + tau, (measured_q, measured_v))
 
     return advance
 
