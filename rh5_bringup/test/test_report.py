@@ -22,7 +22,9 @@ from rosbags.typesys import Stores, get_typestore
 
 from rh5_bringup.report import NotABagError, ReportError, build_report, default_out_dir, load_recording, write_report
 from rh5_bringup.report.__main__ import main as report_main
+from rh5_bringup.report.analysis import planned_base_for
 from rh5_bringup.report.cdr import decode_joint_states, decode_stamped_floats
+from rh5_bringup.report.load import PlannedBase, PlannedJoints
 from rh5_bringup.report.metrics import resample
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import (
@@ -383,3 +385,15 @@ def test_clock_moves_every_time_axis_onto_simulated_time() -> None:
     assert moved.diagnostics[0].t == pytest.approx(2.0)
     assert moved.duration_s == pytest.approx(3.0)
     assert "0.50 x real time" in moved.notes[-1]
+
+
+def test_planned_base_is_the_one_published_with_the_planned_joints() -> None:
+    """Under load the trajectory's base message can reach the recorder after playback started; the report must
+    still compare with it, not with the planner's earlier 2-sample hold."""
+    hold = PlannedBase(0.2, np.array([0.0, 1.0]), np.zeros((2, 3)), np.tile([0.0, 0.0, 0.0, 1.0], (2, 1)))
+    times = np.linspace(0.0, 6.3, 64)
+    motion = PlannedBase(1.9, times, np.zeros((64, 3)), np.tile([0.0, 0.0, 0.0, 1.0], (64, 1)))
+    joints = PlannedJoints(1.0, JOINT_NAMES, times, np.zeros((64, len(JOINT_NAMES))), None)
+    assert planned_base_for([hold, motion], joints, t0=1.85) is motion
+    assert planned_base_for([hold, motion], None, t0=1.85) is hold  # no joint plan: the last one received by t0
+    assert planned_base_for([], joints, t0=1.85) is None

@@ -76,6 +76,20 @@ def _latest_before(items: Sequence[_Planned], t: float | None) -> _Planned | Non
     return before[-1] if before else items[0]
 
 
+def planned_base_for(
+    bases: Sequence[PlannedBase], planned: PlannedJoints | None, t0: float | None
+) -> PlannedBase | None:
+    """The planned_base_trajectory published with ``planned`` (the planner sends both together, with the same
+    duration): the last one of that duration, else the last received by ``t0``. Receive times alone can mislead:
+    a large message reaches the recorder late under load, after the planner's earlier 2-sample hold."""
+    if planned is not None and len(planned.times):
+        duration = float(planned.times[-1])
+        same = [b for b in bases if len(b.times) and abs(float(b.times[-1]) - duration) < 1e-6]
+        if same:
+            return same[-1]
+    return _latest_before(bases, t0)
+
+
 def _tracked(
     reference: JointSeries | None, measured: JointSeries | None, window: tuple[float, float] | None
 ) -> Tracking | None:
@@ -94,7 +108,7 @@ def analyse(recording: Recording, extra: Sequence[str] = ()) -> Analysis:
     planned = _latest_before(rec.planned_joints, first_playing)
     time_zero = trajectory_time_zero(transitions, reports, rec.joint_commands, planned)
     t0 = time_zero.t0
-    planned_base = _latest_before(rec.planned_base, t0)
+    planned_base = planned_base_for(rec.planned_base, planned, t0)
     window = None
     if t0 is not None and planned is not None and len(planned.times):
         window = (t0, t0 + float(planned.times[-1]))
