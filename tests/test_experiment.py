@@ -7,9 +7,12 @@ import os
 import re
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
+
+from rh5_bringup.experiment import SIM_STALL_S, _Monitor
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -84,3 +87,18 @@ def test_report_rejects_a_folder_that_is_not_a_bag(tmp_path: Path) -> None:
     result = subprocess.run([RH5, "report", str(tmp_path)], capture_output=True, text=True, timeout=60, check=False)
     assert result.returncode == 2
     assert "report:" in result.stderr
+
+
+def test_playback_times_out_on_simulated_time_or_a_stalled_simulation() -> None:
+    """The simulation runs slower than real time: the play budget counts simulated seconds while /clock advances,
+    and wall seconds without a simulation; a simulation that stopped publishing /clock times out too."""
+    monitor = object.__new__(_Monitor)
+    now = time.monotonic()
+    monitor.sim_time_s, monitor.sim_time_arrived = 105.0, now  # 5 simulated s after a start at 100 s
+    assert not monitor.timed_out(now - 60.0, 100.0, budget_s=10.0)  # a minute of wall time, 5 s simulated
+    assert monitor.timed_out(now - 60.0, 94.0, budget_s=10.0)  # 11 s simulated
+    monitor.sim_time_arrived = now - SIM_STALL_S - 1.0
+    assert monitor.timed_out(now - 60.0, 100.0, budget_s=10.0)  # /clock stalled
+    monitor.sim_time_s = None  # kinematic mode: wall time
+    assert monitor.timed_out(now - 11.0, None, budget_s=10.0)
+    assert not monitor.timed_out(now - 9.0, None, budget_s=10.0)

@@ -35,6 +35,11 @@ SETTLE_AFTER_RELEASE_S = 1.0
 """The robot stands on its feet under the boards' hold this long before playback starts."""
 FALL_HEIGHT_FRACTION = 0.6
 """The robot has fallen when the base is below this fraction of its height at release."""
+PLAY_SLACK_S = 30.0
+"""Ramp-in and slack on top of the trajectory's duration before the experiment times out: in simulated time
+when the physics publishes it (the simulation runs slower than real time), else in wall time."""
+SIM_STALL_S = 20.0
+"""The experiment also times out when the simulated time has not advanced for this long (wall time)."""
 
 
 class ExperimentError(RuntimeError):
@@ -140,7 +145,8 @@ def experiment_bringup(settings: ExperimentSettings, trajectory: Path, data: Tra
 
 
 class _Monitor:
-    """Follows the stabilizer's state (from /diagnostics) and the true base height (sim/base_pose)."""
+    """Follows the stabilizer's state (from /diagnostics), the true base height (sim/base_pose) and the simulated
+    time (/clock)."""
 
     def __init__(self, node: Any) -> None:
         from rh5_msgs_py.conversions import diagnostics_from_msg  # noqa: PLC0415
@@ -151,11 +157,16 @@ class _Monitor:
         self.trajectory_duration_s: float | None = None
         self.rejected = ""
         self.base_z: float | None = None
+        self.sim_time_s: float | None = None
+        """The simulation's last /clock [s] and when it arrived (time.monotonic)."""
+        self.sim_time_arrived = 0.0
         self._from_msg = diagnostics_from_msg
         topic = interfaces.DIAGNOSTICS
         node.create_subscription(message_class(topic.type), topic.name, self._on_diagnostics, topic.qos)
         topic = interfaces.SIM_BASE_POSE
         node.create_subscription(message_class(topic.type), topic.name, self._on_pose, topic.qos)
+        topic = interfaces.CLOCK
+        node.create_subscription(message_class(topic.type), topic.name, self._on_clock, topic.qos)
 
     def _on_diagnostics(self, msg: Any) -> None:
         for status in self._from_msg(msg):
@@ -170,6 +181,18 @@ class _Monitor:
 
     def _on_pose(self, msg: Any) -> None:
         self.base_z = float(msg.pose.position.z)
+
+    def _on_clock(self, msg: Any) -> None:
+        self.sim_time_s = msg.clock.sec + 1e-9 * msg.clock.nanosec
+        self.sim_time_arrived = time.monotonic()
+
+    def timed_out(self, started_wall: float, started_sim: float | None, budget_s: float) -> bool:
+        """Whether ``budget_s`` has passed since the start: in simulated time if the physics publishes it (or
+        the simulation stalled for SIM_STALL_S), else in wall time."""
+        now = time.monotonic()
+        if started_sim is None or self.sim_time_s is None:
+            return now - started_wall > budget_s
+        return self.sim_time_s - started_sim > budget_s or now - self.sim_time_arrived > SIM_STALL_S
 
 
 def _call(session: SuiteSession, node: str, service: str, progress: Callable[[str], None], **kw: Any) -> str:
@@ -217,8 +240,7 @@ def _play(
         session.sleep(SETTLE_AFTER_RELEASE_S)
         standing_z = monitor.base_z
     _call(session, "stabilizer", "start", progress)
-    started = time.monotonic()
-    deadline = started + duration_s + 30.0  # ramp-in + playback + slack
+    started, started_sim = time.monotonic(), monitor.sim_time_s
     finished_at: float | None = None
     while not session.stop_requested:
         session.sleep(0.1)
@@ -227,6 +249,8 @@ def _play(
             standing_z is not None and monitor.base_z is not None and monitor.base_z < FALL_HEIGHT_FRACTION * standing_z
         )
         z = f", base z {monitor.base_z:.3f} m" if monitor.base_z is not None else ""
+        if started_sim is not None and monitor.sim_time_s is not None:
+            z = f" (simulated {monitor.sim_time_s - started_sim:5.1f} s){z}"
         sys.stderr.write(f"\r{settings.motion}: {monitor.state:<9} {now - started:6.1f} s{z}   ")
         sys.stderr.flush()
         if fell:
@@ -239,7 +263,7 @@ def _play(
                 return f"stabilizer {monitor.state}: {monitor.reason}", False
         if finished_at is not None and now - finished_at >= settings.hold_after_s:
             return "completed", False
-        if now > deadline:
+        if monitor.timed_out(started, started_sim, duration_s + PLAY_SLACK_S):
             return f"timed out in state {monitor.state}", False
     return "interrupted", False
 
