@@ -1,7 +1,8 @@
 """Planner benchmark: solve time, iterations and ms per knot-iteration of every motion, against Talos walking.
 
-Run: ``.venv/bin/python bench/planner.py [--motions a,b] [--repeat N] [--walk-repeat 5] [--nthreads 2]``
-(default: all nine motions once, the walk five times).
+Run: ``.venv/bin/python bench/planner.py [--motions a,b] [--repeat N] [--walk-repeat 5] [--nthreads 2]
+[--contact-form wrench_cone|friction_and_cop]`` (default: all nine motions once, the walk five times, the
+contact-stability form of costs.yaml).
 
 The reference is Crocoddyl's own full-Talos walking problem from example-robot-data, built with
 ``crocoddyl.utils.biped`` here in the bench only (that module is not API; the planner does not use it), with
@@ -22,7 +23,7 @@ import crocoddyl  # before pinocchio (design/crocoddyl_wheels.md)
 import numpy as np
 
 from rh5_planner.motions import MOTIONS, get_motion
-from rh5_planner.problem import PlanResult, SolverSettings, solve
+from rh5_planner.problem import CONTACT_STABILITY_FORMS, PlanResult, SolverSettings, load_cost_config, solve
 
 
 def talos_walk(nthreads: int, max_iterations: int) -> dict[str, float]:
@@ -64,6 +65,9 @@ def main() -> None:
     parser.add_argument("--nthreads", type=int, default=2)
     parser.add_argument("--max-iterations", type=int, default=300)
     parser.add_argument("--stop-threshold", type=float, default=1e-7)
+    parser.add_argument(
+        "--contact-form", choices=CONTACT_STABILITY_FORMS, help="costs.yaml contact_stability.form (default: as there)"
+    )
     args = parser.parse_args()
     names = [n for n in args.motions.split(",") if n]
     for name in names:
@@ -77,8 +81,15 @@ def main() -> None:
         f"solve min/median {min(r['solve_time_s'] for r in talos_runs):.3f}/"
         f"{statistics.median(r['solve_time_s'] for r in talos_runs):.3f} s, {talos_ms:.3f} ms per knot-iteration"
     )
+    config = load_cost_config()
+    if args.contact_form:
+        config["contact_stability"]["form"] = args.contact_form
+    print(f"contact stability: {config['contact_stability'].get('form', 'wrench_cone')}")
     settings = SolverSettings(
-        max_iterations=args.max_iterations, stop_threshold=args.stop_threshold, nthreads=args.nthreads
+        max_iterations=args.max_iterations,
+        stop_threshold=args.stop_threshold,
+        nthreads=args.nthreads,
+        cost_config=config,
     )
     columns = (
         ("knots", 5),

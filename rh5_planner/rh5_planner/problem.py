@@ -10,8 +10,10 @@ Our own builders on Crocoddyl's public API (crocoddyl.utils.biped is not API and
 * Costs (``l = sum_c alpha_c Phi_c``, weights in config/costs.yaml), switched per motion as the paper's table:
   foot pose tracking (``ResidualModelFramePlacement``; swing soles and touch-downs: the rigid contact holds the
   soles in contact at the same targets, costs.yaml ``foot.track_stance``), CoM tracking
-  (``ResidualModelCoMPosition``), friction cone + CoP (crocoddyl ``WrenchCone`` through
-  ``ResidualModelContactWrenchCone`` with a bounded quadratic barrier), joint position/velocity limits
+  (``ResidualModelCoMPosition``), friction cone + CoP (costs.yaml ``contact_stability.form``: one crocoddyl
+  ``WrenchCone`` through ``ResidualModelContactWrenchCone``, or the paper's two terms, ``FrictionCone`` through
+  ``ResidualModelContactFrictionCone`` and ``CoPSupport`` through ``ResidualModelContactCoPPosition``; each with a
+  bounded quadratic barrier), joint position/velocity limits
   (``ResidualModelState`` + ``ActivationModelQuadraticBarrier``), posture (``ResidualModelState`` weighted) and
   torque regularisation (``ResidualModelControl``).
 * Torque limits are the hard box of Box-FDDP: every action model's ``u_lb``/``u_ub`` are
@@ -72,10 +74,12 @@ from .limit_analysis import FOOT_SIZE_M
 from .motions import SIDES, KnotSpec, MotionSpec, Reference
 
 __all__ = [
+    "CONTACT_STABILITY_FORMS",
     "COSTS_FILE",
     "FOOT_SIZE_M",
     "LIMIT_KINDS",
     "BuiltProblem",
+    "ContactCone",
     "LimitFactors",
     "LimitScaleLike",
     "PlanResult",
@@ -84,6 +88,7 @@ __all__ = [
     "SolverSettings",
     "build_problem",
     "build_robot",
+    "contact_cones",
     "limit_factors",
     "load_cost_config",
     "nominal_configuration",
@@ -349,6 +354,19 @@ def _group_vector(values: Mapping[str, float], model: pin.Model) -> FloatArray:
     return out
 
 
+ContactCone = crocoddyl.WrenchCone | crocoddyl.FrictionCone | crocoddyl.CoPSupport
+"""A contact-stability region of one sole, in the sole frame: rows ``lb <= A w <= ub`` on its contact wrench w."""
+CONTACT_STABILITY_FORMS: Final = ("wrench_cone", "friction_and_cop")
+"""costs.yaml ``contact_stability.form``: one 17-row wrench cone (friction, CoP and yaw-torque rows) or the paper's
+two terms, a friction cone (facets + normal force) and a CoP rectangle (4 rows), without yaw-torque rows."""
+_CONE_COSTS: Final[Mapping[type, tuple[str, Any]]] = {
+    crocoddyl.WrenchCone: ("wrench_cone", crocoddyl.ResidualModelContactWrenchCone),
+    crocoddyl.FrictionCone: ("friction_cone", crocoddyl.ResidualModelContactFrictionCone),
+    crocoddyl.CoPSupport: ("cop", crocoddyl.ResidualModelContactCoPPosition),
+}
+"""Cone type -> (cost-name prefix, the crocoddyl residual on a sole frame id and that cone)."""
+
+
 @dataclass(frozen=True, eq=False)
 class _CostTerms:
     """Everything the per-knot builders share: config, switched-on terms and precomputed residual data."""
@@ -359,7 +377,7 @@ class _CostTerms:
     posture_weights: FloatArray
     control_weights: FloatArray
     limit_bounds: crocoddyl.ActivationBounds
-    cone: crocoddyl.WrenchCone
+    cones: tuple[ContactCone, ...]
     foot_rotations: Mapping[str, FloatArray]
 
 
@@ -392,19 +410,36 @@ def _make_terms(robot: RobotSetup, motion: MotionSpec, config: Mapping[str, Any]
     bounds = crocoddyl.ActivationBounds(
         np.concatenate([-inf6, qlo, -inf6, vlo]), np.concatenate([inf6, qhi, inf6, vhi]), 1.0
     )
-    cs = config["contact_stability"]
-    shrink_factor = 1.0 - float(cs["margin"])
-    box = (
-        np.array(FOOT_SIZE_M) * float(cs["cop_fraction"]) * shrink_factor
-        if "cop" in terms
-        else np.array([10.0, 10.0])  # friction only: no CoP bound in practice
-    )
-    mu = float(cs["mu"]) * shrink_factor if "friction" in terms else 1e3
-    cone = crocoddyl.WrenchCone(np.eye(3), mu, box, int(cs["facets"]), True, float(cs["min_normal_force"]))
     data = model.createData()
     pin.framesForwardKinematics(model, data, robot.x0[: model.nq])
     rotations = {side: data.oMf[fid].rotation.copy() for side, fid in robot.foot_ids.items()}
-    return _CostTerms(robot, config, terms, posture, control, bounds, cone, rotations)
+    cones = contact_cones(config["contact_stability"], terms)
+    return _CostTerms(robot, config, terms, posture, control, bounds, cones, rotations)
+
+
+def contact_cones(settings: Mapping[str, Any], terms: frozenset[str]) -> tuple[ContactCone, ...]:
+    """The contact-stability regions of a sole for the switched-on ``terms`` ('friction', 'cop') from the
+    costs.yaml ``contact_stability`` section: mu and the CoP rectangle (``cop_fraction`` of the sole) shrunk by
+    ``margin``, f_z >= ``min_normal_force``, in the form ``settings['form']`` (default ``wrench_cone``)."""
+    form = str(settings.get("form", "wrench_cone"))
+    if form not in CONTACT_STABILITY_FORMS:
+        msg = f"contact_stability.form {form!r} must be one of {list(CONTACT_STABILITY_FORMS)}"
+        raise ValueError(msg)
+    if not {"friction", "cop"} & terms:
+        return ()
+    shrink = 1.0 - float(settings["margin"])
+    box = np.array(FOOT_SIZE_M) * float(settings["cop_fraction"]) * shrink
+    mu, facets, fz_min = float(settings["mu"]) * shrink, int(settings["facets"]), float(settings["min_normal_force"])
+    if form == "wrench_cone":
+        # one term for both: the bound of a term that is off never acts
+        box = box if "cop" in terms else np.array([10.0, 10.0])
+        return (crocoddyl.WrenchCone(np.eye(3), mu if "friction" in terms else 1e3, box, facets, True, fz_min),)
+    cones: list[ContactCone] = []
+    if "friction" in terms:
+        cones.append(crocoddyl.FrictionCone(np.eye(3), mu, facets, True, fz_min))
+    if "cop" in terms:
+        cones.append(crocoddyl.CoPSupport(np.eye(3), box))
+    return tuple(cones)
 
 
 def _costs(ct: _CostTerms, spec: KnotSpec, nu: int, *, terminal: bool = False) -> crocoddyl.CostModelSum:
@@ -433,13 +468,14 @@ def _costs(ct: _CostTerms, spec: KnotSpec, nu: int, *, terminal: bool = False) -
         residual = crocoddyl.ResidualModelCoMPosition(state, middle, nu)
         activation = crocoddyl.ActivationModelWeightedQuad(np.array([1.0, 1.0, 0.0]))
         costs.addCost("com_terminal", crocoddyl.CostModelResidual(state, activation, residual), terminal_com)
-    if ({"friction", "cop"} & ct.terms) and not spec.impulse and not terminal:
-        activation = crocoddyl.ActivationModelQuadraticBarrier(crocoddyl.ActivationBounds(ct.cone.lb, ct.cone.ub))
+    for cone in () if spec.impulse or terminal else ct.cones:
+        prefix, residual_model = _CONE_COSTS[type(cone)]
+        activation = crocoddyl.ActivationModelQuadraticBarrier(crocoddyl.ActivationBounds(cone.lb, cone.ub))
         for side in SIDES:
             if spec.in_contact(side):
-                residual = crocoddyl.ResidualModelContactWrenchCone(state, robot.foot_ids[side], ct.cone, nu)
+                residual = residual_model(state, robot.foot_ids[side], cone, nu)
                 costs.addCost(
-                    f"wrench_cone_{side}",
+                    f"{prefix}_{side}",
                     crocoddyl.CostModelResidual(state, activation, residual),
                     float(cfg["contact_stability"]["weight"]),
                 )
@@ -682,6 +718,8 @@ class SolverSettings:
 
 _TERM_OF_COST: Final = {
     "wrench_cone": "contact_stability",
+    "friction_cone": "contact_stability",
+    "cop": "contact_stability",
     "joint_limits": "joint_limits",
     "foot": "foot",
     "com": "com",
@@ -865,6 +903,10 @@ def solve(
         motion, settings.cost_config, interpolate_guess=settings.interpolate_guess, limit_scale=limit_scale
     )
     built.problem.nthreads = settings.nthreads
+    # Box-FDDP's own line search is kept (alphas 1, 1/2, ..., 2^-9; th_acceptStep 0.1). alphas 1, 1/4, 1/16, ...
+    # (also with th_acceptStep 0.01) cut the walk's forward passes from 3.05 to 2.1-2.3 per iteration, but a forward
+    # pass is only ~7 % of an iteration (0.027 of ~0.42 ms per knot) and most motions then need more iterations
+    # (vertical_jump_1cm 117-232 for 110, one_leg_balancing 48-53 for 35, walk 64 for 42 with alphas alone).
     solver = crocoddyl.SolverBoxFDDP(built.problem)
     build_time = time.perf_counter() - t_build
     config = motion_config(motion.name, settings.cost_config or load_cost_config())

@@ -24,7 +24,15 @@ from rh5_msgs_py.names import FOOT_FRAMES
 from rh5_msgs_py.trajectory_file import NQ, load_trajectory
 from rh5_planner.interpolation import euler_tangents, interpolate
 from rh5_planner.motions import MOTIONS, MotionError, get_motion
-from rh5_planner.problem import FOOT_SIZE_M, PlanResult, SolverSettings, build_problem, load_cost_config, solve
+from rh5_planner.problem import (
+    FOOT_SIZE_M,
+    PlanResult,
+    SolverSettings,
+    build_problem,
+    contact_cones,
+    load_cost_config,
+    solve,
+)
 
 CONFIG = load_cost_config()
 MU = CONFIG["contact_stability"]["mu"]
@@ -286,3 +294,32 @@ def test_motion_library_overrides() -> None:
     specs = get_motion("walk_with_5kg_weights").knots(build_problem(SQUAT).robot.reference())
     assert sum(not s.impulse for s in specs) == walk.n_knots
     assert sum(s.impulse for s in specs) == walk.n_steps
+
+
+def test_contact_stability_forms_bound_the_same_region() -> None:
+    """friction_and_cop is the wrench cone without its 8 yaw-torque rows: the same friction, normal-force and CoP
+    rows from the same mu, cop_fraction, margin and min_normal_force; each form names its costs in the knots."""
+    settings = CONFIG["contact_stability"]
+    both = frozenset({"friction", "cop"})
+    (cone,) = contact_cones({**settings, "form": "wrench_cone"}, both)
+    friction, cop = contact_cones({**settings, "form": "friction_and_cop"}, both)
+    assert (cone.A.shape[0], friction.A.shape[0], cop.A.shape[0]) == (17, 5, 4)
+    np.testing.assert_allclose(cone.A[:5, :3], friction.A)
+    np.testing.assert_allclose(cone.A[:5, 3:], 0.0)
+    np.testing.assert_allclose(cone.A[5:9], cop.A)
+    np.testing.assert_allclose(np.r_[cone.lb[:9], cone.ub[:9]], np.r_[friction.lb, cop.lb, friction.ub, cop.ub])
+    (only,) = contact_cones({**settings, "form": "friction_and_cop"}, frozenset({"cop"}))
+    assert isinstance(only, type(cop))
+    assert contact_cones({**settings, "form": "friction_and_cop"}, frozenset()) == ()
+    with pytest.raises(ValueError, match=r"contact_stability\.form"):
+        contact_cones({**settings, "form": "pyramid"}, both)
+    for form, names in (
+        ("wrench_cone", {"wrench_cone_left"}),
+        ("friction_and_cop", {"friction_cone_left", "cop_left"}),
+    ):
+        config = load_cost_config()
+        config["contact_stability"]["form"] = form
+        knot = build_problem(SQUAT, config).problem.runningModels[0]
+        costs = set(knot.differential.costs.costs.todict())
+        assert names <= costs
+        assert not ({"wrench_cone_left", "friction_cone_left", "cop_left"} - names) & costs
