@@ -3,8 +3,9 @@
 PyBullet has no joint armature, so the physics carries each actuator's reflected inertia A_j as inertia of the
 joint's child link about the joint axis (physics.py). That is exact for the joint's own motion, but the child
 link then also resists every absolute rotation about that axis: when the base pitches, the pitch rotors of hips,
-knees, ankles, torso and shoulders (13 kg m^2 together, more than the whole robot's own pitch inertia) would all
-have to turn with it, where a real rotor, spinning N times faster with 1/N^2 of the inertia, barely notices.
+knees, ankles, torso and shoulders would all have to turn with it (the robot's centroidal inertia at the standing
+pose with 5 kg per hand: pitch 14.3 -> 32.1 kg m^2, roll 17.0 -> 31.9, yaw 3.3 -> 16.0), where a real rotor,
+spinning N times faster with 1/N^2 of the inertia, barely notices.
 
 `ArmatureCorrection` removes that spurious part. With the link model's dynamics M_a(q) qdd + h_a(q, v) and the
 intended model (M(q) + diag(A)) qdd + h(q, v) (rigid links, armature on the joint coordinates, as Featherstone
@@ -17,7 +18,8 @@ accelerations is unstable here (the spurious coupling's generalized eigenvalues 
 are added to). So qdd is predicted: the forward dynamics of the intended model with what held the robot in
 PyBullet's last step still holding it: the touching sole corners (as points that neither move nor pull on the
 ground), joints resting on a position limit, the crane. When PyBullet's constraints then do what the prediction
-assumed, its next acceleration is exactly the intended model's (checked to 1e-6 in tests/test_armature.py); when
+assumed, its next acceleration is the intended model's (rh5_bringup/test/test_armature.py: within 5e-6 of the
+largest acceleration); when
 they do not (a corner lifting or slipping in that step), the error is a bounded force for one step, not a
 feedback loop.
 """

@@ -34,16 +34,15 @@ triangle inequality is added too (`_valid_inertia`). On a link that inertia woul
 rotation of the link (a real rotor spins N times faster with 1/N^2 of the inertia); `ArmatureCorrection`
 (sim/armature.py) applies, every step, the generalized force that takes that part out again, so the robot moves
 as rigid links with A on the joint coordinates (measured: one step matches that model to 5e-6; without it the
-base-free standing pose's pitch inertia is more than doubled and the planned walk played with joint PD lagged
-45 mm instead of 3). The
-boards tuned for the motor alone (kp = M w) make the light rotary joints ring (standing in HOLD: torso yaw
-0.073 rad/s RMS, peaks 0.16); `loaded_params` (``tune_to_load``, the node's default) tunes each board to the
-inertia it drives, as at commissioning: the ringing drops to <= 0.011 rad/s RMS (peaks 0.036) and the standing
-base drift over 3 s from 2.8 to 2.0 mm (the leg boards keep their tuning: their motor inertia exceeds their
-load). The actuators' viscous friction acts on the physics as -J^T b J q_dot in
-the torque; their Coulomb friction does not (PyBullet velocity motors as implicit stiction cost three times
-the step). ``external_force`` is not fed back: the physics applies the load itself, and the overwrite in
-step 1 resynchronises the bank every cycle.
+robot's centroidal pitch inertia is 2.2 times its own and the planned walk played with joint PD lagged 45 mm
+instead of 3). The boards tuned for the motor alone (kp = M w) make the light rotary joints ring (standing in
+HOLD: torso yaw 0.073 rad/s RMS, peaks 0.16); `loaded_params` (``tune_to_load``, the node's default) tunes each
+board to the inertia it drives, as at commissioning: the ringing drops to <= 0.011 rad/s RMS (peaks 0.036) and
+the standing base drift over 3 s from 2.8 to 2.0 mm (the leg boards keep their tuning: their motor inertia
+exceeds their load). The actuators' viscous friction acts on the physics as -J^T b J q_dot in the torque; their
+Coulomb friction does not (PyBullet velocity motors as implicit stiction cost three times the step).
+``external_force`` is not fed back: the physics applies the load itself, and the overwrite in step 1
+resynchronises the bank every cycle.
 
 Stepping: the boards' cascade and the rigid bodies alternate every 0.5 ms (`TIME_STEP`): a 1 ms board cycle
 runs the cascade on the physics state, applies its force for 0.5 ms, and again. With one exchange per 1 ms the
