@@ -13,10 +13,14 @@ ground (rh5_bringup.sim.physics: coupling, contacts, armature), held by a crane 
 Time: the boards step whole 1 ms cycles of the time that passed (physics: two 0.5 ms rigid-body steps
 each). A stall is not replayed (counted as ``counts.time_not_replayed_us``), so when the host cannot keep
 up the simulation runs slower than real time. Physics mode does, on a 2-core machine: the coupled step
-costs ~0.7 ms of CPU per simulated ms next to the rest of the suite (measured: 300-500 cycles/s). It
-then publishes /clock (``publish_clock``), and whatever plays a trajectory against it follows that clock
-(the stabilizer with use_sim_time:=true and playback_clock:=ros; ``rh5 experiment`` sets both); the
-nodes' 1 kHz loops, staleness rules and message stamps stay on wall time.
+with the armature correction costs ~1.2 ms of CPU per simulated ms next to the rest of the suite (measured:
+0.15-0.2 x real time in `rh5 experiment`). It then publishes /clock (``publish_clock``), and whatever plays a
+trajectory against it follows that clock (the stabilizer with use_sim_time:=true and playback_clock:=ros;
+``rh5 experiment`` sets both); the nodes' 1 kHz loops, staleness rules and message stamps stay on wall time.
+In physics mode the boards also step only when the driver's commands come (``pace_by_commands``): a driver
+stalled by the host (loop jitter up to 0.2 s measured here) then pauses the simulated time instead of the
+robot walking on for tens of simulated ms on stale setpoints and its boards' 20 ms watchdog holding the
+joints mid-step; after 0.5 s of silence the boards tick on their own again.
 """
 
 from __future__ import annotations
@@ -78,6 +82,7 @@ class SimHardwareNode(SuiteNode):
         self.emulator = BoardEmulator(board_map, transport, bank, faults)
         if self.physics is not None:  # no replay of a stall: the simulation falls behind instead
             self.emulator.max_catch_up_ns = PHYSICS_MAX_CATCH_UP_NS
+            self.emulator.pace_by_commands = params["pace_by_commands"]
         self.add_post_set_parameters_callback(self._update_faults)
         self.server = BoardsServer(self.emulator)
         self.context.on_shutdown(self.server.stop)

@@ -13,11 +13,19 @@ import numpy as np
 
 from rh5_bringup.driver_node import actuator_limits
 from rh5_bringup.ndlcom.board_map import load_board_map
-from rh5_bringup.ndlcom.codec import encode_frame
-from rh5_bringup.ndlcom.payloads import CommandMode, ErrorFlags, StatusFlags, Telemetry, encode_telemetry
+from rh5_bringup.ndlcom.codec import Frame, encode_frame
+from rh5_bringup.ndlcom.payloads import (
+    Command,
+    CommandMode,
+    ErrorFlags,
+    StatusFlags,
+    Telemetry,
+    encode_command,
+    encode_telemetry,
+)
 from rh5_bringup.rig import LINEAR, DriverLoop, sine_centre
 from rh5_bringup.sim.actuators import ActuatorBank
-from rh5_bringup.sim.boards import BoardEmulator, BoardsServer
+from rh5_bringup.sim.boards import BOARD_PERIOD_NS, COMMAND_PACE_GRACE_NS, BoardEmulator, BoardsServer
 from rh5_bringup.transports import open_transport
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py.names import NUM_JOINTS
@@ -70,3 +78,41 @@ def test_telemetry_from_unknown_addresses_is_dropped_and_counted() -> None:
     link.shutdown()
     assert driver.core.counts["unknown_sender_frames"] == 20
     assert driver.core.readings.position[3] == 0.0  # nothing from the intruder reached the readings
+
+
+def test_paced_boards_wait_for_a_late_driver_and_tick_again_when_it_is_gone() -> None:
+    """Physics mode (``pace_by_commands``): a commandless tick shortly after a command does not step the
+    actuators (the simulated time stands still for a late driver); once the driver has been silent for
+    COMMAND_PACE_GRACE_NS the boards tick on their own again."""
+    board_map = load_board_map()
+    channel = f"rh5-pace-{time.monotonic_ns()}"
+    sim = open_transport("can", interface="virtual", channel=channel, receivers=board_map.addresses())
+    bank = ActuatorBank()
+    bank.reset(CENTRE)
+    emulator = BoardEmulator(board_map, sim, bank)
+    emulator.pace_by_commands = True
+    board = board_map.boards[0]
+    command = encode_command(Command(CommandMode.HOLD), board.scaling)
+    frames = [Frame(board.address, board_map.pc_address, 0, command)]
+    period = BOARD_PERIOD_NS
+    try:
+        t = 10 * period
+        emulator.cycle(t, period, frames=frames)
+        stepped = emulator.board_time_us
+        for _ in range(5):  # the driver is late: five ticks without commands
+            t += period
+            emulator.cycle(t, period, frames=[])
+        assert emulator.board_time_us == stepped
+        assert emulator.counts["cycles_paused_for_the_driver"] == 5
+        t += period
+        emulator.cycle(t, period, frames=frames)  # it comes back: one cycle, the stall is not replayed
+        assert emulator.board_time_us == stepped + period // 1000
+        t += COMMAND_PACE_GRACE_NS + period  # gone: the boards tick on their own
+        emulator.cycle(t, period, frames=[])
+        assert emulator.board_time_us > stepped + period // 1000
+        emulator.pace_by_commands = False  # wall-clock pacing (kinematic mode) never waits
+        before = emulator.board_time_us
+        emulator.cycle(t + period, period, frames=[])
+        assert emulator.board_time_us == before + period // 1000
+    finally:
+        sim.shutdown()

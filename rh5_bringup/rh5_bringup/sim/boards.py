@@ -33,6 +33,9 @@ from rh5_msgs_py.realtime import LoopThread, set_timer_slack
 
 BOARD_COMMAND_TIMEOUT_NS = 20_000_000  # the boards' own watchdog
 BOARD_PERIOD_NS = 1_000_000  # the boards' position loop
+COMMAND_PACE_GRACE_NS = 500_000_000
+"""With ``pace_by_commands``: a driver silent this long is gone (disabled, crashed), not late; the boards tick on
+their own again (and their watchdog holds)."""
 BURST_GAP_S = 100e-6  # datagrams of one command burst arrive this close together
 MAX_CATCH_UP_NS = 50_000_000  # a longer stall (debugger, suspended process) is not replayed
 
@@ -112,6 +115,11 @@ class BoardEmulator:
         self.max_catch_up_ns = MAX_CATCH_UP_NS  # physics mode: a few ms (its steps cost a third of a cycle each)
         self._last_ns: int | None = None
         self._debt_ns = 0  # time passed that the boards have not stepped yet (less than one cycle)
+        self.pace_by_commands = False
+        """Simulation slower than real time (physics mode): while the driver is sending, the boards step only when
+        its commands come, so a late driver (a CPU stall on this machine) pauses the simulated time instead of
+        letting the robot run on stale setpoints; after COMMAND_PACE_GRACE_NS of silence they tick on their own."""
+        self._last_command_ns: int | None = None
 
     def set_faults(self, faults: Faults) -> None:
         """Change the injected faults from the next cycle on (the random stream continues)."""
@@ -150,7 +158,14 @@ class BoardEmulator:
     ) -> ActuatorMeasurement:
         """Take the commands (``frames``, or whatever waits on the transport), step the actuators over the time
         since the last cycle, send telemetry; return what the boards measured."""
-        self._receive(now_ns, self.transport.recv(timeout=0.0) if frames is None else frames)
+        frames = self.transport.recv(timeout=0.0) if frames is None else frames
+        if frames:
+            self._last_command_ns = now_ns
+        elif self._waiting_for_driver(now_ns):
+            self.counts["cycles_paused_for_the_driver"] += 1
+            self._last_ns = now_ns
+            return self.bank.measure()
+        self._receive(now_ns, frames)
         timed_out = (self.mode != int(CommandMode.OFF)) & (now_ns - self.command_ns > BOARD_COMMAND_TIMEOUT_NS)
         mode = np.where(timed_out, int(Mode.HOLD), self.mode)
         setpoint = np.where(mode >= int(Mode.POSITION), self.setpoint, 0.0)
@@ -174,6 +189,11 @@ class BoardEmulator:
         self.board_time_us += steps * BOARD_PERIOD_NS // 1000
         self._send(now_ns, mode, timed_out, measured)
         return measured
+
+    def _waiting_for_driver(self, now_ns: int) -> bool:
+        """Whether this commandless tick waits for a late driver (``pace_by_commands``) instead of stepping."""
+        last = self._last_command_ns
+        return self.pace_by_commands and last is not None and now_ns - last < COMMAND_PACE_GRACE_NS
 
     def _send(self, now_ns: int, mode: np.ndarray, timed_out: np.ndarray, measured: ActuatorMeasurement) -> None:
         faults, rng = self.faults, self._rng
