@@ -131,12 +131,12 @@ class ArmatureCorrection:
         free, inv_jt = solved[:, 0], solved[:, 1:]
         while len(rows):  # drop the groups whose one-sided force would pull, then solve again
             mobility = rows @ inv_jt + CONTACT_DAMPING * np.eye(len(rows))
-            impulse = np.linalg.solve(mobility, -drift - rows @ free)
+            constraint_force = np.linalg.solve(mobility, -drift - rows @ free)
             pulling_groups = np.zeros(int(group[-1]) + 1, dtype=bool)
-            pulling_groups[group[push * impulse < 0.0]] = True
+            pulling_groups[group[push * constraint_force < 0.0]] = True
             keep = ~pulling_groups[group]
             if keep.all():
-                return free + inv_jt @ impulse
+                return free + inv_jt @ constraint_force
             rows, drift, push, group, inv_jt = rows[keep], drift[keep], push[keep], group[keep], inv_jt[:, keep]
         return free
 

@@ -157,7 +157,8 @@ class BoardEmulator:
         frames: list[Frame] | None = None,
     ) -> ActuatorMeasurement:
         """Take the commands (``frames``, or whatever waits on the transport), step the actuators over the time
-        since the last cycle, send telemetry; return what the boards measured."""
+        since the last cycle, send telemetry; return what the boards measured. With ``pace_by_commands`` a tick
+        without commands while the driver is sending steps nothing and sends nothing (the boards wait for it)."""
         frames = self.transport.recv(timeout=0.0) if frames is None else frames
         if frames:
             self._last_command_ns = now_ns
