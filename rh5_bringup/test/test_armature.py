@@ -50,12 +50,13 @@ def _state(world: PhysicsWorld, armature: ArmatureCorrection) -> tuple[np.ndarra
 
 
 def _intended_acceleration(armature: ArmatureCorrection, q: np.ndarray, v: np.ndarray, tau: np.ndarray, held: bool):
-    """(M + A) qdd = tau - h with the base free, or with the base held (its 6 rows removed)."""
+    """(M + A) qdd = tau - h with the base free, or with the base held (its 6 rows removed), as Pinocchio defines
+    joint armature."""
     model = armature.model
     data = model.createData()
     force = -pin.nonLinearEffects(model, data, q, v)
     force[armature.joint_v] += tau
-    inertia = pin.crba(model, data, q) + np.diag(armature.armature)
+    inertia = pin.crba(model, data, q)  # Pinocchio adds the model's armature A to the diagonal
     if not held:
         return np.linalg.solve(inertia, force)
     out = np.zeros(model.nv)

@@ -80,6 +80,7 @@ class ArmatureCorrection:
         self.joint_v = np.array([self.model.joints[names.index(n)].idx_v for n in JOINT_NAMES])
         self.armature = np.zeros(self.model.nv)
         self.armature[self.joint_v] = np.asarray(armature, dtype=np.float64)
+        self.model.armature = self.armature  # Pinocchio's own joint armature: crba, rnea and aba include A
         self.lower = self.model.lowerPositionLimit[self.joint_q]
         self.upper = self.model.upperPositionLimit[self.joint_q]
         self.soles = [self.model.getFrameId(sole) for sole in feet]
@@ -114,7 +115,7 @@ class ArmatureCorrection:
         """The intended model's floating-base mass matrix M + diag(A) (Pinocchio's v order) at the joint positions
         ``joints`` (JOINT_NAMES), the base at the origin."""
         q = self.configuration(np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]), np.asarray(joints, dtype=np.float64))
-        return pin.crba(self.model, self.data, q) + np.diag(self.armature)
+        return pin.crba(self.model, self.data, q)
 
     def predict(
         self, q: FloatArray, v: FloatArray, tau: FloatArray, contacts: Sequence[bool], held: bool
@@ -125,7 +126,7 @@ class ArmatureCorrection:
         model, data = self.model, self.data
         force = -pin.nonLinearEffects(model, data, q, v)
         force[self.joint_v] += tau
-        inertia = pin.crba(model, data, q) + np.diag(self.armature)  # Pinocchio 4 fills both triangles
+        inertia = pin.crba(model, data, q)  # M + diag(A); Pinocchio 4 fills both triangles
         rows, drift, push, group = self._constraints(q, v, contacts, held)
         solved = np.linalg.solve(inertia, np.column_stack([force, rows.T]))
         free, inv_jt = solved[:, 0], solved[:, 1:]
@@ -197,11 +198,11 @@ class ArmatureCorrection:
         return blocks
 
     def correction(self, q: FloatArray, v: FloatArray, acceleration: FloatArray) -> FloatArray:
-        """F = rnea_a - rnea - A qdd at ``acceleration`` (Pinocchio's v order): what PyBullet must be given on
-        top of the intended forces so that its armature-on-links robot accelerates as the intended model."""
+        """F = rnea_a - (rnea + A qdd) at ``acceleration`` (Pinocchio's v order; its rnea adds the model's armature):
+        what PyBullet must be given on top of the intended forces so that its armature-on-links robot accelerates
+        as the intended model."""
         linked = pin.rnea(self.linked, self.linked_data, q, v, acceleration)
-        rigid = pin.rnea(self.model, self.data, q, v, acceleration)
-        return linked - rigid - self.armature * acceleration
+        return linked - pin.rnea(self.model, self.data, q, v, acceleration)
 
     def split(self, force: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """The generalized force as joint torques (JOINT_NAMES) and the base's force and torque in its own frame
