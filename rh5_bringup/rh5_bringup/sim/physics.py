@@ -300,9 +300,10 @@ class PhysicsWorld:
                 fixedTimeStep=time_step, numSubSteps=0, numSolverIterations=solver_iterations, physicsClientId=cid
             )
             self.ground = self._load_ground()
+            linked_urdf = physics_urdf(self.dynamics.armature, hand_payload_kg)
             with TemporaryDirectory(prefix="rh5_physics_") as tmp:
                 path = Path(tmp) / "rh5.urdf"
-                path.write_text(physics_urdf(self.dynamics.armature, hand_payload_kg), encoding="utf-8")
+                path.write_text(linked_urdf, encoding="utf-8")
                 self.robot = pb.loadURDF(
                     str(path), flags=pb.URDF_USE_INERTIA_FROM_FILE, useFixedBase=False, physicsClientId=cid
                 )
@@ -311,7 +312,7 @@ class PhysicsWorld:
             self.armature = (
                 ArmatureCorrection(
                     physics_urdf(None, hand_payload_kg),
-                    physics_urdf(self.dynamics.armature, hand_payload_kg),
+                    linked_urdf,
                     self.dynamics.armature,
                     {FOOT_FRAMES[side]: self._corner_names[side] for side in ("left", "right")},
                 )
