@@ -1,8 +1,8 @@
 """Planner benchmark: solve time, iterations and ms per knot-iteration of every motion, against Talos walking.
 
 Run: ``.venv/bin/python bench/planner.py [--motions a,b] [--repeat N] [--walk-repeat 5] [--nthreads 2]
-[--contact-form wrench_cone|friction_and_cop]`` (default: all nine motions once, the walk five times, the
-contact-stability form of costs.yaml).
+[--contact-form wrench_cone|friction_and_cop] [--no-matched]`` (default: all nine motions once, the walk five
+times, the contact-stability form of costs.yaml).
 
 The reference is Crocoddyl's own full-Talos walking problem from example-robot-data, built with
 ``crocoddyl.utils.biped`` here in the bench only (that module is not API; the planner does not use it), with
@@ -11,6 +11,10 @@ motions print ms per knot-iteration as a ratio to Talos's (target <= 1.0) and th
 walk_with_5kg_weights (target <= 2 s). Times are wall-clock of ``solve()`` only; the 2-vCPU machine is noisy,
 so minima and medians are both printed. The last column counts joints whose solution leaves the position /
 velocity limits (the design-analysis motions of the paper's feasibility table do; torques never leave the box).
+
+Crocoddyl's cost per knot-iteration grows with the horizon (more knot data than the caches hold): the same Talos
+walk costs ~0.38 ms at 27 knots and ~0.58 ms at 270 on this machine. So the ``@T`` columns also solve the Talos
+walk discretised into as many knots as the motion (same 0.6 m gait, dt scaled) and print the ratio to that.
 """
 
 from __future__ import annotations
@@ -25,9 +29,13 @@ import numpy as np
 from rh5_planner.motions import MOTIONS, get_motion
 from rh5_planner.problem import CONTACT_STABILITY_FORMS, PlanResult, SolverSettings, load_cost_config, solve
 
+TALOS_KNOTS = 55
+"""Knots of the reference walk (dt 0.03 s, 25 knots per step, 2 per double support)."""
 
-def talos_walk(nthreads: int, max_iterations: int) -> dict[str, float]:
-    """Crocoddyl's full-Talos walking problem, solved like ours (BoxFDDP, quasi-static warm start)."""
+
+def talos_walk(nthreads: int, max_iterations: int, knots: int = TALOS_KNOTS) -> dict[str, float]:
+    """Crocoddyl's full-Talos walking problem, solved like ours (BoxFDDP, quasi-static warm start); ``knots``
+    other than 55 discretises the same walk finer or coarser (step and support knots scaled, dt scaled inversely)."""
     import example_robot_data  # noqa: PLC0415
     from crocoddyl.utils.biped import SimpleBipedGaitProblem  # noqa: PLC0415
 
@@ -35,7 +43,8 @@ def talos_walk(nthreads: int, max_iterations: int) -> dict[str, float]:
     gait = SimpleBipedGaitProblem(talos.model, "right_sole_link", "left_sole_link")
     q0 = talos.model.referenceConfigurations["half_sitting"].copy()
     x0 = np.concatenate([q0, np.zeros(talos.model.nv)])
-    problem = gait.createWalkingProblem(x0, 0.6, 0.1, 0.03, 25, 2)
+    scale = knots / TALOS_KNOTS
+    problem = gait.createWalkingProblem(x0, 0.6, 0.1, 0.03 / scale, round(25 * scale), max(1, round(2 * scale)))
     problem.nthreads = nthreads
     solver = crocoddyl.SolverBoxFDDP(problem)
     solver.th_stop = 1e-7
@@ -67,6 +76,9 @@ def main() -> None:
     parser.add_argument("--stop-threshold", type=float, default=1e-7)
     parser.add_argument(
         "--contact-form", choices=CONTACT_STABILITY_FORMS, help="costs.yaml contact_stability.form (default: as there)"
+    )
+    parser.add_argument(
+        "--no-matched", action="store_true", help="skip the Talos walks with each motion's knot count (@T columns)"
     )
     args = parser.parse_args()
     names = [n for n in args.motions.split(",") if n]
@@ -100,9 +112,13 @@ def main() -> None:
         ("med s", 7),
         ("ms/k-it", 8),
         ("ratio", 6),
+        ("T-ref", 6),
+        ("ms@T", 6),
+        ("ratio@T", 7),
     )
     print(f"{'motion':26s} " + " ".join(f"{c:>{w}s}" for c, w in columns) + "  limits (joints over: position/velocity)")
-    walk_median, total, ratios = None, 0.0, []
+    walk_median, total, ratios, matched_ratios = None, 0.0, [], []
+    matched: dict[int, dict[str, float]] = {}
     for name in names:
         repeat = args.walk_repeat if name == "walk_with_5kg_weights" else args.repeat
         results = [solve(get_motion(name), settings) for _ in range(max(1, repeat))]
@@ -114,13 +130,25 @@ def main() -> None:
         ratios.append(ms / talos_ms)
         if name == "walk_with_5kg_weights":
             walk_median = median
+        at_t = "     -      -       -"
+        if not args.no_matched:
+            knots = logs[0]["knots"]
+            if knots not in matched:
+                matched[knots] = talos_walk(args.nthreads, args.max_iterations, knots)
+            ref = matched[knots]
+            matched_ratios.append(ms / ref["ms_per_knot_iteration"])
+            at_t = f"{ref['knots']:6d} {ref['ms_per_knot_iteration']:6.3f} {matched_ratios[-1]:7.2f}"
         print(
             f"{name:26s} {logs[0]['knots']:5d} {logs[0]['iterations']:5d} {logs[0]['converged']!s:>5s} "
-            f"{logs[0]['stop_reason']:>12s} {min(times):7.3f} {median:7.3f} {ms:8.3f} {ms / talos_ms:6.2f}  "
-            f"{_violations(results[0])}"
+            f"{logs[0]['stop_reason']:>12s} {min(times):7.3f} {median:7.3f} {ms:8.3f} {ms / talos_ms:6.2f} "
+            f"{at_t}  {_violations(results[0])}"
         )
     print("ratio = our ms per knot-iteration / Talos's (target <= 1.0)")
+    if matched_ratios:
+        print("ratio@T = the same, against the Talos walk discretised into T-ref knots (about the motion's)")
     print(f"all {len(names)} motions: {total:.1f} s of median solve time (target <= 60 s); max ratio {max(ratios):.2f}")
+    if matched_ratios:
+        print(f"max ratio@T {max(matched_ratios):.2f}")
     if walk_median is not None:
         verdict = "meets" if walk_median <= 2.0 else "misses"
         print(f"walk_with_5kg_weights median solve time {walk_median:.3f} s ({verdict} the 2 s target)")
