@@ -10,11 +10,16 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 
 from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import joint_trajectory_from_msg, status_from_msg, wrench_from_msg
 from rh5_msgs_py.names import JOINT_NAMES
+
+COSTS_FILE = Path(__file__).parents[1] / "rh5_planner" / "rh5_planner" / "config" / "costs.yaml"
+STAGES = len(yaml.safe_load(COSTS_FILE.read_text(encoding="utf-8"))["continuation"]) + 1
+"""Box-FDDP solves per plan: the continuation stages of costs.yaml, then the problem as configured."""
 
 pytestmark = pytest.mark.ros
 
@@ -221,7 +226,7 @@ def test_unconverged_plan_is_saved_but_not_published(planner: Observer) -> None:
     assert summary["motion"] == "fast_walk_1m_s"
     assert summary["verified"] is False
     assert summary["converged"] is False
-    assert 1 <= summary["iterations"] <= 3  # the cap holds per continuation stage of the wrench cone
+    assert 1 <= summary["iterations"] <= STAGES  # the cap holds per continuation stage of the wrench cone
     assert Path(summary["file"]).is_file()
     planner.spin_until(lambda: False, 0.3)
     assert not any(len(m.points) > 2 for m in planner.trajectories)

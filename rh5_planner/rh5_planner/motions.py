@@ -15,17 +15,17 @@ targets are translations of the sole frame, whose orientation stays that of the 
 turning); times in s, lengths in m.
 
 Status (see ``VERIFIED_MOTIONS``; Box-FDDP with the costs.yaml continuation, measured on the 2-vCPU dev VM):
-walk_with_5kg_weights (with its 0.5 s rest) converges in ~42 iterations (~1.4 s), squat_with_5kg_weights ~12,
-fast_squats ~11, vertical_jump_1cm ~110 (feasible: every limit holds with the motion_overrides joint-limit weight),
-one_leg_balancing ~35 and static_stepping ~30; all six are tested for convergence, contact stability (CoP in the
+walk_with_5kg_weights (with its 0.5 s rest) converges in ~41 iterations (~1.3 s), squat_with_5kg_weights ~14,
+fast_squats ~12, vertical_jump_1cm ~106 (feasible: every limit holds with the motion_overrides joint-limit weight),
+one_leg_balancing ~20 and static_stepping ~22; all six are tested for convergence, contact stability (CoP in the
 50 % rectangle, friction, f_z > 0), joint/torque limits and foot drift. Design-analysis motions: vertical_jump_10cm
-converges (~136 iterations, soles 9.8 cm up) with the knees at ~2.6x, hips (Hip3) ~1.4x and BodyPitch ~1.02x
+converges (~99 iterations, soles 9.8 cm up) with the knees at ~2.6x, hips (Hip3) ~1.4x and BodyPitch ~1.02x
 their velocity limits, positions and torques inside (the paper: velocity infeasible, body pitch and knee).
 fast_walk_1m_s converges with the paper's cost set, which has no contact-wrench cone: its contacts pull on the
 ground (f_z < 0) and the swing soles stay low, so it is not physically consistent; with the cone switched on it
 does not converge in 300 iterations (a linear inverted pendulum from rest to rest over its 0.7 m in 0.7 s needs the
 ZMP up to ~0.65 m beyond the 50 % sole region, against ~0.04 m for the 0.35 m/s walk). obstacle_jumps (with the
-costs.yaml posture term and joint-limit weight) converges in ~80 iterations with stable contacts, the knees at ~6.9x
+costs.yaml posture term and joint-limit weight) converges in ~68 iterations with stable contacts, the knees at ~6.9x
 and Hip3 ~3.2x their velocity limits (the paper: velocity infeasible), positions and torques inside; the three
 jumps are in bench/planner.py, one of them in the tests. The walk's CoP needs whole-body
 angular momentum: a linear inverted pendulum at RH5's CoM height (1.03 m) cannot go 0.5 m from rest to rest in
