@@ -12,10 +12,10 @@ walk_with_5kg_weights (target <= 2 s). Times are wall-clock of ``solve()`` only;
 so minima and medians are both printed. The last column counts joints whose solution leaves the position /
 velocity limits (the design-analysis motions of the paper's feasibility table do; torques never leave the box).
 
-Crocoddyl's cost per knot-iteration grows with the horizon (more knot data than the caches hold): the same Talos
-walk costs ~0.38 ms at 27 knots and ~0.58 ms at 270 on this machine. So the ``@T`` columns also solve the Talos
-walk discretised into as many knots as the motion (same 0.6 m gait, dt scaled; median of three solves) and print
-the ratio to that.
+Crocoddyl's cost per knot-iteration grows with the horizon on this machine: the same Talos walk costs ~0.38 ms at
+27 knots, ~0.43 ms at 55 and ~0.58-0.63 ms at 270 (its derivative pass per knot is ~45 % dearer at 110 knots than
+at 55, likely the knot data outgrowing the caches). So the ``@T`` columns also solve the Talos walk discretised into
+as many knots as the motion (same 0.6 m gait, dt scaled; median of three solves) and print the ratio to that.
 """
 
 from __future__ import annotations

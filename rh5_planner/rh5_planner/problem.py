@@ -36,7 +36,7 @@ Our own builders on Crocoddyl's public API (crocoddyl.utils.biped is not API and
 
 * Continuation (costs.yaml ``continuation``): the problem is first solved with the contact wrench cone off, then
   at 1 % and 10 % weight, each stage warm-starting the next (``SolverSettings`` regularisations); then
-  with every weight as configured (same optimum, about half the iterations for the walk and the balancing
+  with every weight as configured (same optimum, a third of the iterations for the walk and the balancing
   experiments). Convergence: Box-FDDP's gradient test (``stop_threshold``) or the cost unchanged to
   ``cost_tolerance`` over ``stall_iterations`` full steps on a feasible trajectory.
 * Scaled limits (design-improvement heuristic): ``limit_scale`` of :func:`solve` / :func:`build_problem` /
