@@ -117,6 +117,7 @@ class SimHardwareNode(SuiteNode):
         self.create_service(Trigger, interfaces.RELEASE_SUPPORT_SERVICE, self._release_support)
         physics.ground_truth_every = max(1, round(1.0 / (params["ground_truth_rate_hz"] * physics.world.time_step)))
         physics.snapshot()
+        self._ground_truth_version = 0  # of the last sample published
         self.create_timer(1.0 / params["ground_truth_rate_hz"], self._publish_ground_truth)
         self.get_logger().info(
             f"physics: {physics.world.total_mass:.2f} kg, friction {params['friction_coefficient']}, "
@@ -135,13 +136,17 @@ class SimHardwareNode(SuiteNode):
         return response
 
     def _publish_ground_truth(self) -> None:
-        """The true base pose (frame "world") and each foot's contact wrench (in and about its sole frame)."""
+        """The true base pose (frame "world") and each foot's contact wrench (in and about its sole frame), and
+        /clock: each sample the physics took (every 1 / ground_truth_rate_hz of simulated time) once. The timer
+        runs on the wall clock, and a simulation slower than real time would otherwise publish the same sample
+        several times (at 0.17 x real time six), to the recorder and every /clock subscriber."""
         assert self.physics is not None
         from geometry_msgs.msg import PoseStamped  # noqa: PLC0415 - physics mode only
 
-        truth, _, _ = self.physics.ground_truth.try_get()  # taken by the boards thread: no lock, no PyBullet here
-        if truth is None:
+        truth, _, version = self.physics.ground_truth.try_get()  # taken by the boards thread: no lock, no PyBullet
+        if truth is None or version == self._ground_truth_version:
             return
+        self._ground_truth_version = version
         pose, wrenches = truth.base, truth.wrenches
         now_ns = self.get_clock().now().nanoseconds
         msg = PoseStamped()
