@@ -14,9 +14,10 @@ Time: the boards step whole 1 ms cycles of the time that passed (physics: two 0.
 each). A stall is not replayed (counted as ``counts.time_not_replayed_us``), so when the host cannot keep
 up the simulation runs slower than real time. Physics mode does, on a 2-core machine: the coupled step
 with the armature correction costs ~1.2 ms of CPU per simulated ms next to the rest of the suite (measured:
-0.15-0.2 x real time in `rh5 experiment`). It then publishes /clock (``publish_clock``), and whatever plays a
-trajectory against it follows that clock (the stabilizer with use_sim_time:=true and playback_clock:=ros;
-``rh5 experiment`` sets both); the nodes' 1 kHz loops, staleness rules and message stamps stay on wall time.
+0.21-0.23 x real time in `rh5 experiment`; 0.14-0.16 while it published each ground-truth sample up to six
+times). It then publishes /clock (``publish_clock``), and whatever plays a trajectory against it follows that
+clock (the stabilizer with use_sim_time:=true and playback_clock:=ros; ``rh5 experiment`` sets both); the
+nodes' 1 kHz loops, staleness rules and message stamps stay on wall time.
 In physics mode the boards also step only when the driver's commands come (``pace_by_commands``): a driver
 stalled by the host (loop jitter up to 0.2 s measured here) then pauses the simulated time instead of the
 robot walking on for tens of simulated ms on stale setpoints and its boards' 20 ms watchdog holding the
