@@ -63,6 +63,25 @@ def test_bag_holds_the_suite_streams(experiment: tuple[subprocess.CompletedProce
     assert counts.get("/planned_trajectory", 0) >= 1, counts
 
 
+def test_each_ground_truth_sample_is_recorded_once(experiment: tuple[subprocess.CompletedProcess[str], Path]) -> None:
+    """/clock comes with each ground-truth sample, taken every 4 ms of simulated time (ground_truth_rate_hz 250):
+    never the same sample twice (here the simulation runs slower than the publishing timer's wall clock)."""
+    import numpy as np
+    from rosbags.highlevel import AnyReader
+
+    result, _ = experiment
+    with AnyReader([_path_after("bag", result.stdout)]) as reader:
+        clock = [c for c in reader.connections if c.topic == "/clock"]
+        stamps = [
+            (msg.clock.sec * 1_000_000_000 + msg.clock.nanosec)
+            for msg in (reader.deserialize(raw, con.msgtype) for con, _, raw in reader.messages(connections=clock))
+        ]
+    steps = np.diff(stamps)
+    assert len(stamps) > 500
+    assert (steps > 0).all(), f"{np.count_nonzero(steps <= 0)} repeated /clock values"
+    assert (steps % 4_000_000 == 0).all()
+
+
 def test_report_is_written_and_rewritten(experiment: tuple[subprocess.CompletedProcess[str], Path]) -> None:
     result, out = experiment
     report = _path_after("report", result.stdout)
