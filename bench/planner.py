@@ -23,6 +23,8 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
+from collections.abc import Sequence
+from pathlib import Path
 
 import crocoddyl  # before pinocchio (design/crocoddyl_wheels.md)
 import numpy as np
@@ -81,6 +83,9 @@ def main() -> None:
     parser.add_argument(
         "--no-matched", action="store_true", help="skip the Talos walks with each motion's knot count (@T columns)"
     )
+    parser.add_argument(
+        "--plot", default="out/bench/planner.png", help="figure: ms per knot-iteration over knots, ours and Talos's"
+    )
     args = parser.parse_args()
     names = [n for n in args.motions.split(",") if n]
     for name in names:
@@ -119,6 +124,7 @@ def main() -> None:
     )
     print(f"{'motion':26s} " + " ".join(f"{c:>{w}s}" for c, w in columns) + "  limits (joints over: position/velocity)")
     walk_median, total, ratios, matched_ratios = None, 0.0, [], []
+    ours: list[tuple[str, int, float]] = []  # (motion, knots, ms per knot-iteration) for the figure
     matched: dict[int, tuple[int, float]] = {}  # motion knots -> (reference knots, median ms/knot-iteration)
     for name in names:
         repeat = args.walk_repeat if name == "walk_with_5kg_weights" else args.repeat
@@ -129,6 +135,7 @@ def main() -> None:
         median = statistics.median(times)
         total += median
         ratios.append(ms / talos_ms)
+        ours.append((name, logs[0]["knots"], ms))
         if name == "walk_with_5kg_weights":
             walk_median = median
         at_t = "     -      -       -"
@@ -154,6 +161,33 @@ def main() -> None:
     if walk_median is not None:
         verdict = "meets" if walk_median <= 2.0 else "misses"
         print(f"walk_with_5kg_weights median solve time {walk_median:.3f} s ({verdict} the 2 s target)")
+    references = sorted({(talos_runs[0]["knots"], talos_ms), *matched.values()})
+    print(f"figure: {_horizon_figure(Path(args.plot), references, ours)}")
+
+
+def _horizon_figure(path: Path, talos: Sequence[tuple[int, float]], ours: Sequence[tuple[str, int, float]]) -> Path:
+    """ms per knot-iteration over the number of knots: the Talos walk at each discretisation (a line) and our
+    motions (labelled points), so a ratio's horizon part is seen at a glance."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: PLC0415
+    from matplotlib.figure import Figure  # noqa: PLC0415
+
+    fig = Figure(figsize=(7.0, 4.5), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    knots, ms = zip(*talos, strict=True)
+    ax.plot(knots, ms, "o-", color="0.4", label="Crocoddyl's Talos walk, discretised into that many knots")
+    for name, n, value in ours:
+        ax.plot(n, value, "s", color="tab:blue")
+        ax.annotate(name, (n, value), textcoords="offset points", xytext=(4, 4), fontsize=7)
+    ax.plot([], [], "s", color="tab:blue", label="our motions")
+    ax.set_xlabel("knots")
+    ax.set_ylabel("solve time per knot and iteration [ms]")
+    ax.set_ylim(bottom=0.0)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    return path
 
 
 def _violations(plan: PlanResult) -> str:
