@@ -23,7 +23,7 @@ STAGES = len(yaml.safe_load(COSTS_FILE.read_text(encoding="utf-8"))["continuatio
 
 pytestmark = pytest.mark.ros
 
-MOTION = "squat_with_5kg_weights"  # converges in ~11 iterations, ~0.5 s
+MOTION = "squat_with_5kg_weights"  # converges in ~14 iterations, ~0.4 s
 SLOW_MOTION = "fast_squats"  # ~1.3 s of solving: long enough to call other services meanwhile
 PLAN_TIMEOUT_S = 30.0
 

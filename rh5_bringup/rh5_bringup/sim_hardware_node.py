@@ -13,7 +13,7 @@ ground (rh5_bringup.sim.physics: coupling, contacts, armature), held by a crane 
 Time: the boards step whole 1 ms cycles of the time that passed (physics: two 0.5 ms rigid-body steps
 each). A stall is not replayed (counted as ``counts.time_not_replayed_us``), so when the host cannot keep
 up the simulation runs slower than real time. Physics mode does, on a 2-core machine: the coupled step
-with the armature correction costs ~1.2 ms of CPU per simulated ms next to the rest of the suite (measured:
+with the armature correction costs ~1.3 ms of CPU per simulated ms next to the rest of the suite (measured:
 0.21-0.23 x real time in `rh5 experiment`; 0.14-0.16 while it published each ground-truth sample up to six
 times). It then publishes /clock (``publish_clock``), and whatever plays a trajectory against it follows that
 clock (the stabilizer with use_sim_time:=true and playback_clock:=ros; ``rh5 experiment`` sets both); the
