@@ -146,9 +146,10 @@ def declare_parameters(node: Node, specs: Iterable[ParamSpec]) -> None:
     by_name = {}
     for spec in specs:
         descriptor = spec.descriptor()
-        if spec.is_array and not spec.default:
-            # rclpy types an empty list as BYTE_ARRAY and would then refuse a string list: the spec's own
-            # check (in the on-set callback below) enforces the element type instead.
+        if (spec.is_array and not spec.default) or spec.type in {"double", "double_array"}:
+            # rclpy types an empty list as BYTE_ARRAY and would then refuse a string list, and it refuses a whole
+            # number for a double (-p rate_hz:=1000, `rh5 experiment --param node.rate_hz=1000`): the spec's own
+            # check (in the on-set callback below) enforces the type instead, whole numbers allowed for doubles.
             descriptor.dynamic_typing = True
         node.declare_parameter(spec.name, spec.default, descriptor)
         by_name[spec.name] = spec

@@ -5,7 +5,14 @@ from __future__ import annotations
 import pytest
 from rcl_interfaces.msg import ParameterType
 
-from rh5_msgs_py.parameters import ParameterSpecError, ParamSpec, markdown_table, parse_spec
+from rh5_msgs_py.parameters import (
+    ParameterSpecError,
+    ParamSpec,
+    declare_parameters,
+    markdown_table,
+    parameter_values,
+    parse_spec,
+)
 
 DOCUMENT = {
     "parameters": {
@@ -76,3 +83,36 @@ def test_markdown_table_lists_every_parameter() -> None:
     assert table.count("\n") == 4
     assert "`rate_hz`" in table
     assert "read-only" in table
+
+
+@pytest.mark.ros
+def test_declared_parameters_take_whole_numbers_for_doubles_and_refuse_other_types(ros_graph: object) -> None:
+    """A launch value of 1000 for a double (rclpy alone refuses an INTEGER there) is taken, a read-only one too;
+    later sets are checked against the spec: a whole number passes, a string or an out-of-range value is refused."""
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+
+    specs = parse_spec(
+        {
+            "parameters": {
+                **DOCUMENT["parameters"],
+                "fixed_hz": {"type": "double", "default": 250.0, "read_only": True, "description": "Fixed rate."},
+            }
+        }
+    )
+    node = Node(
+        "parameter_probe",
+        parameter_overrides=[Parameter("rate_hz", value=1000), Parameter("fixed_hz", value=500)],
+    )
+    try:
+        declare_parameters(node, specs)
+        assert parameter_values(node, specs)["rate_hz"] == 1000
+        assert parameter_values(node, specs)["fixed_hz"] == 500
+        assert node.set_parameters([Parameter("rate_hz", value=2000)])[0].successful
+        refused = node.set_parameters([Parameter("rate_hz", value="fast"), Parameter("rate_hz", value=9000.0)])
+        assert [r.successful for r in refused] == [False, False]
+        assert "expected double, got str" in refused[0].reason
+        assert "9000" in refused[1].reason  # rclpy's range check of the descriptor answers first
+        assert node.get_parameter("rate_hz").value == 2000
+    finally:
+        node.destroy_node()
