@@ -127,13 +127,23 @@ def test_robot_description_is_latched_and_complete(suite: Any) -> None:
         assert f'name="{joint}"' in urdf
 
 
-def test_bad_launch_parameter_is_refused_with_the_reason(ros_test_environment: dict[str, str]) -> None:
+def test_bad_launch_parameter_is_refused_with_the_reason(ros_graph: Any, ros_test_environment: dict[str, str]) -> None:
+    """The node exits with the reason on stderr; waiting for it ends once it has exited (not after the 20 s
+    timeout), and the launcher says why it never appeared."""
     bad = NodeSpec("driver", "rh5_bringup", "driver_node", {"rate_hz": 0.0})
-    with SuiteRun(Bringup("", (bad,)), _log_dir(ros_test_environment, "bad_parameter")) as run:
-        run.processes[0].process.wait(timeout=30)
+    domain = int(ros_test_environment["ROS_DOMAIN_ID"])
+    with SuiteRun(Bringup("", (bad,)), _log_dir(ros_test_environment, "bad_parameter"), domain) as run:
+        started = time.monotonic()
+        missing = wait_for_nodes(ros_graph, {"driver"}, exited=lambda: {p.spec.name for p in run.exited()})
+        waited = time.monotonic() - started
+        why = run.why_missing(missing)
     proc = run.processes[0]
     assert proc.process.returncode == 2
     assert "rate_hz" in proc.stderr_path.read_text()
+    assert missing == {"driver"}
+    assert waited < 15.0
+    assert why.startswith("driver: exited with 2: cannot start: "), why
+    assert "rate_hz out of range" in why
 
 
 def test_runtime_parameter_change_is_validated(ros_graph: Any, ros_test_environment: dict[str, str]) -> None:

@@ -77,6 +77,7 @@ def up(bringup: Bringup, duration_s: float | None, log_root: Path, start: bool =
         names = {n.name for n in bringup.nodes}
         if missing:
             print(f"rh5 up: never appeared in the ROS graph: {sorted(missing)}", file=sys.stderr)
+            print(run.why_missing(missing), file=sys.stderr)
         else:
             print(f"rh5 up: {len(names)} nodes running: {', '.join(sorted(names))}", flush=True)
             if start:

@@ -284,8 +284,11 @@ def run_experiment(settings: ExperimentSettings, progress: Callable[[str], None]
         progress(f"experiment {settings.motion}: ROS_DOMAIN_ID={session.run.domain_id}, folder {folder}")
         missing = session.start()
         if missing:
+            msg = (  # before closing: closing stops the nodes that are still starting
+                f"never appeared in the ROS graph: {sorted(missing)} (logs in {folder / 'logs'})\n"
+                f"{session.run.why_missing(missing)}"
+            )
             session.close()
-            msg = f"never appeared in the ROS graph: {sorted(missing)} (logs in {folder / 'logs'})"
             raise ExperimentError(msg)
         try:
             result.outcome, result.fell = _play(session, settings, duration_s, progress)

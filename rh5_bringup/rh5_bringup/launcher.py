@@ -14,7 +14,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
@@ -168,6 +168,15 @@ class NodeProcess:
         """The node's exit summary (what it saw and sent), once it has stopped."""
         return parse_summary(self.output())
 
+    def last_error(self, max_chars: int = 300) -> str:
+        """The last line the node wrote on stderr (a node that cannot start says why there), shortened."""
+        try:
+            lines = self.stderr_path.read_text(encoding="utf-8", errors="replace").strip().splitlines()
+        except OSError:
+            return ""
+        last = lines[-1].strip() if lines else ""
+        return last if len(last) <= max_chars else last[: max_chars - 3] + "..."
+
 
 class SuiteRun:
     """A running suite: processes, their domain and log folder. Use as a context manager."""
@@ -201,6 +210,21 @@ class SuiteRun:
         """Nodes that have stopped on their own."""
         return [p for p in self.processes if p.process.poll() is not None]
 
+    def why_missing(self, names: Iterable[str]) -> str:
+        """Why nodes never appeared in the ROS graph, one per line: the exit code and last stderr line of those
+        that stopped (a bad parameter, an import error), else that they are still starting."""
+        by_name = {p.spec.name: p for p in self.processes}
+        lines = []
+        for name in sorted(names):
+            proc = by_name.get(name)
+            if proc is None:
+                lines.append(f"{name}: not started")
+            elif (code := proc.process.poll()) is not None:
+                lines.append(f"{name}: exited with {code}: {proc.last_error() or 'nothing on stderr'}")
+            else:
+                lines.append(f"{name}: still running but not in the graph (log {proc.stderr_path})")
+        return "\n".join(lines)
+
     def stop(self, grace_s: float = STOP_GRACE_S) -> dict[str, int]:
         """Stop every node, newest first: SIGINT, then SIGTERM and SIGKILL after ``grace_s``. Idempotent."""
         for proc in reversed(self.processes):
@@ -228,8 +252,15 @@ class SuiteRun:
         self.stop()
 
 
-def wait_for_nodes(graph_node: Any, names: set[str], namespace: str = "/", timeout_s: float = 20.0) -> set[str]:
-    """Wait until every node in ``names`` is visible in the ROS graph; return those that never appeared."""
+def wait_for_nodes(
+    graph_node: Any,
+    names: set[str],
+    namespace: str = "/",
+    timeout_s: float = 20.0,
+    exited: Callable[[], set[str]] | None = None,
+) -> set[str]:
+    """Wait until every node in ``names`` is visible in the ROS graph; return those that never appeared.
+    ``exited`` (names of nodes whose process stopped) ends the wait early once every missing node has stopped."""
     import rclpy  # noqa: PLC0415 (the launcher imports ROS only when it observes the graph)
 
     deadline = time.monotonic() + timeout_s
@@ -238,4 +269,6 @@ def wait_for_nodes(graph_node: Any, names: set[str], namespace: str = "/", timeo
         rclpy.spin_once(graph_node, timeout_sec=0.1)
         visible = {name for name, ns in graph_node.get_node_names_and_namespaces() if ns == namespace}
         missing = names - visible
+        if missing and exited is not None and missing <= exited():
+            break
     return missing

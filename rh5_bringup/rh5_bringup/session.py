@@ -52,7 +52,13 @@ class SuiteSession:
     def start(self, timeout_s: float = 20.0) -> set[str]:
         """Start the nodes; return those that never appeared in the graph (empty when all are up)."""
         self.run.start()
-        return wait_for_nodes(self.node, {n.name for n in self.bringup.nodes}, self.namespace, timeout_s)
+        return wait_for_nodes(
+            self.node,
+            {n.name for n in self.bringup.nodes},
+            self.namespace,
+            timeout_s,
+            exited=lambda: {p.spec.name for p in self.run.exited()},
+        )
 
     def crashed(self) -> list[str]:
         """Nodes that stopped on their own."""
