@@ -116,6 +116,9 @@ def experiment(args: argparse.Namespace) -> int:
                 msg = f"--param {dotted}: expected NODE.KEY=VALUE"
                 raise ValueError(msg)
             node_parameters.setdefault(node, {})[key] = value
+        if args.out.exists() and not args.out.is_dir():
+            msg = f"--out {args.out}: not a folder"
+            raise ValueError(msg)
         nodes = {n.name for n in load_bringup(args.bringup).nodes}
         if set(node_parameters) - nodes:
             msg = f"--param: no nodes {sorted(set(node_parameters) - nodes)} in the bringup (have {sorted(nodes)})"

@@ -69,6 +69,13 @@ def test_cli_sim_choice_sets_the_sim_hardware_mode() -> None:
     assert modes["sim_hardware"] == "physics"
 
 
+def test_experiment_refuses_an_output_root_that_is_a_file(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    out.write_text("")
+    assert main(["experiment", "fast_squats", "--out", str(out)]) == 2
+    assert f"--out {out}: not a folder" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize(
     ("argv", "reason"),
     [
