@@ -326,6 +326,8 @@ def main(argv: Sequence[str] | None = None, *, out: IO[str] | None = None, err: 
             raise UsageError(f"--max-iterations must be >= 1, got {args.max_iterations}")
         if not (args.stop_threshold > 0):
             raise UsageError(f"--stop-threshold must be > 0, got {args.stop_threshold}")
+        if args.output_dir is not None and Path(args.output_dir).exists() and not Path(args.output_dir).is_dir():
+            raise UsageError(f"--output-dir {args.output_dir}: not a folder")
         if args.list:
             return _list(out)
         if args.table is not None:

@@ -92,6 +92,7 @@ def test_design_stops_at_the_first_feasible_scaling() -> None:
         (["--design", "squat_with_5kg_weights", "--factors", "1,x"], "comma-separated numbers"),
         (["squat_with_5kg_weights", "--scale", "knee:velocity"], "--scale only applies with --design"),
         ([], "a MOTION"),
+        (["squat_with_5kg_weights", "--output-dir", __file__], "not a folder"),
     ],
 )
 def test_bad_input_exits_2(argv: list[str], message: str) -> None:
