@@ -169,8 +169,17 @@ def declare_parameters(node: Node, specs: Iterable[ParamSpec]) -> None:
 
 
 def parameter_values(node: Node, specs: Iterable[ParamSpec]) -> dict[str, Any]:
-    """Current values of the spec'd parameters, as plain Python values."""
-    return {spec.name: node.get_parameter(spec.name).value for spec in specs}
+    """Current values of the spec'd parameters, as plain Python values (doubles as floats, also when they were
+    given as whole numbers)."""
+    values = {}
+    for spec in specs:
+        value = node.get_parameter(spec.name).value
+        if spec.type == "double":
+            value = float(value)
+        elif spec.type == "double_array":
+            value = [float(item) for item in value]
+        values[spec.name] = value
+    return values
 
 
 def markdown_table(specs: Iterable[ParamSpec]) -> str:

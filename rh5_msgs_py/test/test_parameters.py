@@ -106,8 +106,9 @@ def test_declared_parameters_take_whole_numbers_for_doubles_and_refuse_other_typ
     )
     try:
         declare_parameters(node, specs)
-        assert parameter_values(node, specs)["rate_hz"] == 1000
-        assert parameter_values(node, specs)["fixed_hz"] == 500
+        values = parameter_values(node, specs)
+        assert (values["rate_hz"], values["fixed_hz"]) == (1000.0, 500.0)
+        assert isinstance(values["rate_hz"], float)  # what the node's code sees
         assert node.set_parameters([Parameter("rate_hz", value=2000)])[0].successful
         refused = node.set_parameters([Parameter("rate_hz", value="fast"), Parameter("rate_hz", value=9000.0)])
         assert [r.successful for r in refused] == [False, False]
