@@ -163,8 +163,8 @@ class SimHardwareNode(SuiteNode):
         if self._publish_clock is not None:
             from rosgraph_msgs.msg import Clock  # noqa: PLC0415
 
-            clock = Clock()  # the simulated time now (a step count is read atomically: no lock needed)
-            to_time_msg(self.physics.world.steps * round(self.physics.world.time_step * 1e9), clock.clock)
+            clock = Clock()  # the sample's simulated time: the physics may have stepped on since it was taken
+            to_time_msg(truth.sim_ns, clock.clock)
             self._publish_clock(clock)
 
     def _update_faults(self, _changed: list[Any]) -> None:
