@@ -446,9 +446,13 @@ class PhysicsWorld:
 
     def base_pose(self) -> Pose:
         """The true pose of the root link frame (BASE_FRAME) in the world (not PyBullet's base COM frame)."""
+        return self._root_and_com()[0]
+
+    def _root_and_com(self) -> tuple[Pose, FloatArray]:
+        """The root link frame's world pose and the base COM's world position (PyBullet's base frame)."""
         com_pos, com_orn = pb.getBasePositionAndOrientation(self.robot, physicsClientId=self._client)
         pos, orn = pb.multiplyTransforms(com_pos, com_orn, *self._base_inertial_inv, physicsClientId=self._client)
-        return Pose(np.asarray(pos), np.asarray(orn))
+        return Pose(np.asarray(pos), np.asarray(orn)), np.asarray(com_pos)
 
     def base_velocity(self) -> tuple[FloatArray, FloatArray]:
         """Linear velocity of the base COM and angular velocity [world axes]."""
@@ -536,14 +540,12 @@ class PhysicsWorld:
         """Apply the armature correction's base wrench for the next step; return its joint torques."""
         cid, robot, armature = self._client, self.robot, self.armature
         assert armature is not None
-        com, com_orientation = pb.getBasePositionAndOrientation(robot, physicsClientId=cid)
-        position, orientation = pb.multiplyTransforms(
-            com, com_orientation, *self._base_inertial_inv, physicsClientId=cid
-        )
-        rotation = quaternion_matrix(orientation)
-        linear, angular = (np.asarray(w) for w in pb.getBaseVelocity(robot, physicsClientId=cid))
-        root_linear = linear + _cross(angular, np.subtract(position, com))
-        q_full = armature.configuration(np.asarray(position), np.asarray(orientation), q)
+        root, com = self._root_and_com()
+        position = root.position.tolist()
+        rotation = quaternion_matrix(root.orientation)
+        linear, angular = self.base_velocity()
+        root_linear = linear + _cross(angular, root.position - com)
+        q_full = armature.configuration(root.position, root.orientation, q)
         v_full = armature.velocity(rotation, root_linear, angular, v)
         touching = {point[3] for point in pb.getContactPoints(bodyA=robot, bodyB=self.ground, physicsClientId=cid)}
         contacts = [link in touching for link in self._corner_links]
