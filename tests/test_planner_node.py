@@ -10,15 +10,14 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import yaml
 
 from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import joint_trajectory_from_msg, status_from_msg, wrench_from_msg
 from rh5_msgs_py.names import JOINT_NAMES
+from rh5_planner.problem import load_cost_config
 
-COSTS_FILE = Path(__file__).parents[1] / "rh5_planner" / "rh5_planner" / "config" / "costs.yaml"
-STAGES = len(yaml.safe_load(COSTS_FILE.read_text(encoding="utf-8"))["continuation"]) + 1
+STAGES = len(load_cost_config()["continuation"]) + 1
 """Box-FDDP solves per plan: the continuation stages of costs.yaml, then the problem as configured."""
 
 pytestmark = pytest.mark.ros
