@@ -21,10 +21,12 @@ as many knots as the motion (same 0.6 m gait, dt scaled; median of three solves)
 from __future__ import annotations
 
 import argparse
+import functools
 import statistics
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import crocoddyl  # before pinocchio (design/crocoddyl_wheels.md)
 import numpy as np
@@ -36,16 +38,23 @@ TALOS_KNOTS = 55
 """Knots of the reference walk (dt 0.03 s, 25 knots per step, 2 per double support)."""
 
 
+@functools.cache
+def _talos_model() -> Any:
+    """Talos's Pinocchio model, parsed once for all the reference solves (the gait builder does not change it)."""
+    import example_robot_data  # noqa: PLC0415
+
+    return example_robot_data.load("talos").model
+
+
 def talos_walk(nthreads: int, max_iterations: int, knots: int = TALOS_KNOTS) -> dict[str, float]:
     """Crocoddyl's full-Talos walking problem, solved like ours (BoxFDDP, quasi-static warm start); ``knots``
     other than 55 discretises the same walk finer or coarser (step and support knots scaled, dt scaled inversely)."""
-    import example_robot_data  # noqa: PLC0415
     from crocoddyl.utils.biped import SimpleBipedGaitProblem  # noqa: PLC0415
 
-    talos = example_robot_data.load("talos")
-    gait = SimpleBipedGaitProblem(talos.model, "right_sole_link", "left_sole_link")
-    q0 = talos.model.referenceConfigurations["half_sitting"].copy()
-    x0 = np.concatenate([q0, np.zeros(talos.model.nv)])
+    model = _talos_model()
+    gait = SimpleBipedGaitProblem(model, "right_sole_link", "left_sole_link")
+    q0 = model.referenceConfigurations["half_sitting"].copy()
+    x0 = np.concatenate([q0, np.zeros(model.nv)])
     scale = knots / TALOS_KNOTS
     problem = gait.createWalkingProblem(x0, 0.6, 0.1, 0.03 / scale, round(25 * scale), max(1, round(2 * scale)))
     problem.nthreads = nthreads
