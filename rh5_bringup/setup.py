@@ -36,6 +36,7 @@ setup(
     tests_require=["pytest"],
     entry_points={
         "console_scripts": [
+            "control_node = rh5_bringup.control_node:main",
             "driver_node = rh5_bringup.driver_node:main",
             "sim_hardware_node = rh5_bringup.sim_hardware_node:main",
             "recorder_node = rh5_bringup.recorder_node:main",

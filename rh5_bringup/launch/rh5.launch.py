@@ -1,6 +1,12 @@
 # Generated from rh5_bringup/bringup.yaml by `python -m rh5_bringup.launch_files`: do not edit by hand.
-"""Launch the RH5 control suite: `ros2 launch rh5_bringup rh5.launch.py [sim:=kinematic|physics]`."""
+"""Launch the RH5 control suite: `ros2 launch rh5_bringup rh5.launch.py [sim:=kinematic|physics]`.
 
+separate:=true runs the driver, mapper and stabilizer as three processes instead of the control process.
+"""
+
+import tempfile
+
+import yaml
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
@@ -27,56 +33,103 @@ NODES = [{'name': 'recorder',
   'package': 'rh5_bringup',
   'executable': 'recorder_node',
   'parameters': {},
-  'remappings': []},
+  'remappings': [],
+  'hosts': []},
  {'name': 'sim_hardware',
   'package': 'rh5_bringup',
   'executable': 'sim_hardware_node',
   'parameters': {},
-  'remappings': []},
+  'remappings': [],
+  'hosts': []},
+ {'name': 'control',
+  'package': 'rh5_bringup',
+  'executable': 'control_node',
+  'parameters': {},
+  'remappings': [],
+  'hosts': ['driver', 'mapper', 'stabilizer']},
  {'name': 'driver',
   'package': 'rh5_bringup',
   'executable': 'driver_node',
   'parameters': {'transport': 'udp', 'router_host': '127.0.0.1', 'board_silence_timeout_s': 0.05},
-  'remappings': []},
+  'remappings': [],
+  'hosts': []},
  {'name': 'mapper',
   'package': 'rh5_hyrodyn_mapper',
   'executable': 'mapper_node',
   'parameters': {},
-  'remappings': []},
+  'remappings': [],
+  'hosts': []},
  {'name': 'stabilizer',
   'package': 'rh5_joint_stabilizer',
   'executable': 'stabilizer_node',
   'parameters': {'state_timeout_s': 0.05},
-  'remappings': []},
+  'remappings': [],
+  'hosts': []},
  {'name': 'planner',
   'package': 'rh5_planner',
   'executable': 'planner_node',
   'parameters': {},
-  'remappings': []}]
-"""The nodes in start order, as in bringup.yaml."""
+  'remappings': [],
+  'hosts': []}]
+"""The nodes in start order, as in bringup.yaml. A node with ``hosts`` runs those nodes in its own process (the
+control process); with separate:=true they run on their own instead, and the host is left out."""
 
 
-def _nodes(context) -> list:
-    """One Node action per node of the bringup description, with the launch arguments' values applied."""
+def _parameters(context) -> dict:
+    """Each node's parameters with the launch arguments' values applied."""
     values = {name: LaunchConfiguration(name).perform(context) for name in ARGUMENTS}
-    actions = []
+    out = {}
     for node in NODES:
         parameters = dict(node["parameters"])
         for name, a in ARGUMENTS.items():
             if a["node"] == node["name"]:
                 parameters[a["parameter"]] = values[name]
             parameters.update(a["implies"].get(values[name], {}).get(node["name"], {}))
-        actions.append(
-            Node(
-                package=node["package"],
-                executable=node["executable"],
-                name=node["name"],
-                namespace=NAMESPACE,
-                parameters=[parameters],
-                remappings=node["remappings"],
-                output="screen",
+        out[node["name"]] = parameters
+    return out
+
+
+def _full_name(name: str) -> str:
+    return f"/{NAMESPACE.strip('/')}/{name}" if NAMESPACE.strip("/") else f"/{name}"
+
+
+def _nodes(context) -> list:
+    """One Node action per process: the hosted nodes inside their host's unless separate:=true."""
+    parameters = _parameters(context)
+    separate = LaunchConfiguration("separate").perform(context).lower() in ("true", "1", "yes")
+    hosted = {name for node in NODES for name in node["hosts"]}
+    actions = []
+    for node in NODES:
+        if node["hosts"] and not separate:
+            names = [node["name"], *node["hosts"]]
+            document = {_full_name(n): {"ros__parameters": parameters[n]} for n in names}
+            with tempfile.NamedTemporaryFile("w", suffix=".yaml", prefix=node["name"] + "_", delete=False) as f:
+                yaml.safe_dump(document, f)
+            remaps = [
+                (f"{n['name']}:{src}", dst) for n in NODES if n["name"] in names for src, dst in n["remappings"]
+            ]
+            actions.append(
+                Node(
+                    package=node["package"],
+                    executable=node["executable"],
+                    namespace=NAMESPACE,
+                    parameters=[f.name],
+                    remappings=remaps,
+                    output="screen",
+                )
             )
-        )
+        elif not node["hosts"] and (separate or node["name"] not in hosted):
+            actions.append(
+                Node(
+                    package=node["package"],
+                    executable=node["executable"],
+                    name=node["name"],
+                    namespace=NAMESPACE,
+                    parameters=[parameters[node["name"]]],
+                    remappings=node["remappings"],
+                    output="screen",
+                )
+            )
     return actions
 
 
@@ -86,4 +139,12 @@ def generate_launch_description() -> LaunchDescription:
         DeclareLaunchArgument(name, default_value=a["default"], choices=a["choices"], description=a["description"])
         for name, a in ARGUMENTS.items()
     ]
+    declared.append(
+        DeclareLaunchArgument(
+            "separate",
+            default_value="false",
+            choices=["false", "true"],
+            description="Run the control process's nodes (driver, mapper, stabilizer) as separate processes.",
+        )
+    )
     return LaunchDescription([*declared, OpaqueFunction(function=_nodes)])

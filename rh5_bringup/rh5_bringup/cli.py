@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -74,7 +75,7 @@ def up(bringup: Bringup, duration_s: float | None, log_root: Path, start: bool =
         run = session.run
         print(f"rh5 up: ROS_DOMAIN_ID={run.domain_id}, logs in {run.log_dir}", flush=True)
         missing = session.start()
-        names = {n.name for n in bringup.nodes}
+        names = bringup.node_names()
         if missing:
             print(f"rh5 up: never appeared in the ROS graph: {sorted(missing)}", file=sys.stderr)
             print(run.why_missing(missing), file=sys.stderr)
@@ -136,6 +137,7 @@ def experiment(args: argparse.Namespace) -> int:
         bringup=args.bringup,
         report=not args.no_report,
         node_parameters=node_parameters,
+        composed=not args.separate,
     )
     try:
         result = run_experiment(settings, progress=lambda text: print(f"rh5 experiment: {text}", flush=True))
@@ -159,6 +161,12 @@ def report(args: argparse.Namespace) -> int:
     return report_main(argv)
 
 
+SEPARATE_HELP = (
+    "run the driver, mapper and stabilizer as three processes linked by topics (development) instead of the "
+    "control process's one real-time cycle"
+)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``rh5``."""
     parser = argparse.ArgumentParser(prog="rh5", description="RH5 control suite command line.")
@@ -171,6 +179,7 @@ def build_parser() -> argparse.ArgumentParser:
     up_parser.add_argument(
         "--start", action="store_true", help="once up: plan the planner's motion, enable the driver, start playback"
     )
+    up_parser.add_argument("--separate", action="store_true", help=SEPARATE_HELP)
     exp = commands.add_parser("experiment", help="plan, run on the simulated robot, record and report a motion")
     exp.add_argument("motion", help="motion name (rh5-plan --list)")
     exp.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="motion parameter override")
@@ -180,6 +189,7 @@ def build_parser() -> argparse.ArgumentParser:
     exp.add_argument("--hold", type=float, default=1.0, help="seconds to keep holding after the motion ends")
     exp.add_argument("--bringup", type=Path, default=None, help="bringup description YAML")
     exp.add_argument("--no-report", action="store_true", help="record only")
+    exp.add_argument("--separate", action="store_true", help=SEPARATE_HELP)
     exp.add_argument(
         "--param",
         action="append",
@@ -201,7 +211,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.duration is not None and args.duration <= 0:
             print("rh5 up: --duration must be positive", file=sys.stderr)
             return 2
-        bringup = load_bringup(args.bringup).resolved(sim=args.sim)
+        bringup = replace(load_bringup(args.bringup).resolved(sim=args.sim), composed=not args.separate)
         return up(bringup, args.duration, args.log_dir, start=args.start)
     if args.command == "experiment":
         return experiment(args)

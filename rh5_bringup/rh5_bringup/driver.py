@@ -1,11 +1,13 @@
 """The driver's 1 kHz cycle, free of ROS: commands out to every board, telemetry back, safety rules.
 
-Each ``cycle(now_ns, period_ns)`` sends one COMMAND frame per actuator and collects the
-TELEMETRY frames of the same cycle. Safety, in order of precedence:
+Each cycle sends one COMMAND frame per actuator (``write``) and takes the TELEMETRY frames that
+arrived (``read``). The stand-alone driver writes then reads (``cycle``); the control process
+reads, computes the command from that telemetry, then writes (rh5_bringup.control_cycle).
+Safety, in order of precedence:
 - estop (latched until reset), a silent board (latched safe hold until re-enabled), not
   enabled, or a command older than ``command_timeout`` -> every board is told to HOLD;
 - setpoints outside the stroke, velocity and force limits are clamped (and counted);
-- non-finite commands never get here (refused on arrival) and cannot be encoded anyway;
+- non-finite commands are refused on arrival, and a cycle that finds one anyway sends HOLD;
 - telemetry from addresses outside the board map is dropped and counted.
 """
 
@@ -21,7 +23,13 @@ import numpy as np
 
 from rh5_bringup.ndlcom.board_map import BoardMap
 from rh5_bringup.ndlcom.codec import FrameEncoder
-from rh5_bringup.ndlcom.payloads import CommandMode, PayloadError, decode_telemetry, encode_commands
+from rh5_bringup.ndlcom.payloads import (
+    CommandMode,
+    TelemetryArrays,
+    decode_telemetry_of,
+    encode_commands,
+    is_telemetry_v1,
+)
 from rh5_bringup.transports.base import Transport
 from rh5_msgs_py.realtime import LatencyWindow, LatestValue
 
@@ -98,6 +106,8 @@ class DriverCore:
         self._sent_ns = np.zeros(256, dtype=np.int64)  # send time of the latest 256 sequence numbers
         self._echoed = np.full(n, -1, dtype=np.int64)
         self.latency = LatencyWindow()
+        self.read_ns = 0
+        self.frames_read = 0
 
     # --- requests ----------------------------------------------------------------------------------------------------
 
@@ -150,6 +160,9 @@ class DriverCore:
         if now_ns - stamp_ns > self.command_timeout_ns:
             self.counts["stale_command_cycles"] += 1
             return CommandMode.HOLD, None
+        if not all(np.isfinite(x).all() for x in command):  # refused on arrival too; never on the wire
+            self.counts["non_finite_command_cycles"] += 1
+            return CommandMode.HOLD, None
         lim = self.limits
         position = np.clip(command.position, lim.position_min, lim.position_max)
         velocity = np.clip(command.velocity, -lim.velocity_max, lim.velocity_max)
@@ -159,19 +172,46 @@ class DriverCore:
             self.clamped.update(self.board_map.boards[i].name for i in np.flatnonzero(clamped))
         return CommandMode.POSITION_FF, ActuatorCommand(position, velocity, effort)
 
-    def cycle(self, now_ns: int, period_ns: int) -> ActuatorReadings:
-        """Send this cycle's commands, take the telemetry that arrived, apply the silence rule; return the readings.
-
-        The boards answer a command within their next cycle, so a reading is about one period old.
-        """
+    def _start(self, now_ns: int, period_ns: int) -> None:
         if not self.started_ns:
             self.started_ns = now_ns
             self.silence_cycles = max(1, -(-self.silence_timeout_ns // period_ns))
+
+    def cycle(self, now_ns: int, period_ns: int) -> ActuatorReadings:
+        """The stand-alone driver's cycle: send the latest command (``write``), then take the telemetry (``read``).
+
+        The boards answer a command within their next cycle, so a reading is about one period old.
+        """
+        self.write(now_ns, period_ns)
+        return self.read(now_ns, period_ns)
+
+    def read(self, now_ns: int, period_ns: int) -> ActuatorReadings:
+        """Take every telemetry frame waiting and apply the silence rule; return the readings.
+
+        ``read_ns`` is when this read began (what the telemetry-to-command latency counts from) and
+        ``frames_read`` how many frames it took.
+        """
+        self._start(now_ns, period_ns)
+        self.read_ns = time.monotonic_ns()
+        self.frames_read = self._receive(self.read_ns)
+        silent = self.silent_boards(time.monotonic_ns())
+        if silent and not self.safe_hold_reason:
+            self.safe_hold_reason = f"boards silent for more than {self.silence_timeout_ns / 1e6:g} ms: {silent}"
+            self.enabled = False
+            self._on_event(f"safe hold: {self.safe_hold_reason}")
+        return self.readings
+
+    def write(self, now_ns: int, period_ns: int) -> int:
+        """Send one command frame per board: the setpoints of ``command``, or HOLD where a safety rule says so.
+
+        Returns when the frames were handed to the transport (monotonic ns).
+        """
+        self._start(now_ns, period_ns)
         mode, command = self._setpoints(now_ns)
         self.mode = mode
         n = len(self._addresses)
-        zeros = np.zeros(n)
         if command is None:
+            zeros = np.zeros(n)
             payloads = encode_commands(
                 np.full(n, int(mode)), zeros, zeros, zeros, sequence=self.sequence, table=self._table
             )
@@ -184,46 +224,54 @@ class DriverCore:
                 sequence=self.sequence,
                 table=self._table,
             )
-        self.transport.send_frames(
-            self._encoder.encode(address, payload) for address, payload in zip(self._addresses, payloads, strict=True)
-        )
+        self.transport.send_frames(self._encoder.encode_many(self._addresses, payloads))
+        sent_ns = time.monotonic_ns()
         self._sent_ns[self.sequence % len(self._sent_ns)] = now_ns
         self.counts["cycles"] += 1
-        self._receive(time.monotonic_ns())
         self.sequence = (self.sequence + 1) & 0xFFFFFFFF
-        silent = self.silent_boards(time.monotonic_ns())
-        if silent and not self.safe_hold_reason:
-            self.safe_hold_reason = f"boards silent for more than {self.silence_timeout_ns / 1e6:g} ms: {silent}"
-            self.enabled = False
-            self._on_event(f"safe hold: {self.safe_hold_reason}")
-        return self.readings
+        return sent_ns
 
-    def _receive(self, now_ns: int) -> None:
-        """Take every telemetry frame waiting (the boards answer each command within the cycle after it)."""
-        for frame in self.transport.recv(timeout=0.0):
-            index = self._index_of.get(frame.sender)
+    def _receive(self, now_ns: int) -> int:
+        """Take every telemetry frame waiting (the boards answer each command within the cycle after it) and
+        decode the newest of each board in one vectorised pass; return how many frames were taken."""
+        frames = self.transport.recv(timeout=0.0)
+        if not frames:
+            return 0
+        index_of, counts = self._index_of, self.counts
+        newest: dict[int, bytes] = {}
+        for frame in frames:
+            index = index_of.get(frame.sender)
             if index is None:
-                self.counts["unknown_sender_frames"] += 1
-                continue
-            try:
-                telemetry = decode_telemetry(frame.payload, self.board_map.boards[index].scaling)
-            except PayloadError:
-                self.counts["bad_payloads"] += 1
-                continue
-            r = self.readings
-            r.position[index], r.velocity[index], r.effort[index] = (
-                telemetry.position,
-                telemetry.velocity,
-                telemetry.effort,
-            )
-            r.temperature[index], r.status[index], r.errors[index] = (
-                telemetry.temperature,
-                int(telemetry.status),
-                int(telemetry.errors),
-            )
-            self.heard_ns[index] = now_ns
-            self.heard_cycle[index] = self.counts["cycles"]
-            sent_ns = self._sent_ns[telemetry.sequence % len(self._sent_ns)]
-            if sent_ns and telemetry.sequence != self._echoed[index]:
-                self._echoed[index] = telemetry.sequence
-                self.latency.add(now_ns - sent_ns)
+                counts["unknown_sender_frames"] += 1
+            elif is_telemetry_v1(frame.payload):
+                newest[index] = frame.payload  # a later frame of the same board supersedes an earlier one
+            else:
+                counts["bad_payloads"] += 1
+        if not newest:
+            return len(frames)
+        boards = np.fromiter(newest, dtype=np.intp, count=len(newest))
+        valid, telemetry = decode_telemetry_of(list(newest.values()), boards, self._table)
+        if not valid.all():
+            counts["bad_payloads"] += int((~valid).sum())
+            boards, telemetry = boards[valid], TelemetryArrays(*(field[valid] for field in telemetry))
+        r = self.readings
+        r.position[boards], r.velocity[boards], r.effort[boards] = (
+            telemetry.position,
+            telemetry.velocity,
+            telemetry.effort,
+        )
+        r.temperature[boards], r.status[boards], r.errors[boards] = (
+            telemetry.temperature,
+            telemetry.status,
+            telemetry.errors,
+        )
+        self.heard_ns[boards] = now_ns
+        self.heard_cycle[boards] = counts["cycles"]
+        sequence = telemetry.sequence.astype(np.int64)
+        sent_ns = self._sent_ns[sequence % len(self._sent_ns)]
+        echo = (sent_ns != 0) & (sequence != self._echoed[boards])
+        if echo.any():  # one round trip per board and command, however many times the board repeats it
+            self._echoed[boards[echo]] = sequence[echo]
+            for ns in now_ns - sent_ns[echo]:
+                self.latency.add(int(ns))
+        return len(frames)

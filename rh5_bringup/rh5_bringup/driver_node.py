@@ -24,7 +24,7 @@ from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec, Level, Status, diagnostics_to_msg
 from rh5_msgs_py.names import ACTUATOR_NAMES
-from rh5_msgs_py.node_runtime import SuiteNode, run_node
+from rh5_msgs_py.node_runtime import SuiteNode, log_realtime_grant, run_node
 from rh5_msgs_py.realtime import DeadlineLoop
 
 DIAGNOSTICS_PERIOD_S: Final = 1.0
@@ -37,9 +37,14 @@ def actuator_limits() -> Limits:
 
 
 class DriverNode(SuiteNode):
-    """ROS wiring around DriverCore and its 1 kHz loop."""
+    """ROS wiring around DriverCore and its 1 kHz loop.
 
-    def __init__(self) -> None:
+    ``composed=True``: hosted by the control process (rh5_bringup.control_node), whose cycle reads and
+    writes ``core`` itself and publishes ``actuator_states``; the node then runs no loop and takes no
+    ``actuator_commands``.
+    """
+
+    def __init__(self, *, composed: bool = False) -> None:
         super().__init__(interfaces.DRIVER_NODE, "rh5_bringup", "params/driver.yaml")
         params = self.params
         board_map = load_board_map(params["board_map"] or None)
@@ -69,19 +74,28 @@ class DriverNode(SuiteNode):
             on_event=self._on_event,
         )
         self._command_codec = JointStateCodec(ACTUATOR_NAMES, what="actuator_commands")
-        self._state_codec = JointStateCodec(ACTUATOR_NAMES)
-        self._publish_states = self.advertise(interfaces.ACTUATOR_STATES)
+        self.state_codec = JointStateCodec(ACTUATOR_NAMES)
+        self.publish_states = self.advertise(interfaces.ACTUATOR_STATES)
         self._publish_estop = self.advertise(interfaces.DRIVER_ESTOP)
         self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
         self._publish_estop(Bool(data=False))
-        self.subscribe_stream(interfaces.ACTUATOR_COMMANDS, self._on_command)
+        if not composed:
+            self.subscribe_stream(interfaces.ACTUATOR_COMMANDS, self._on_command)
         self.create_service(SetBool, interfaces.ENABLE_SERVICE, self._on_enable)
         self.create_service(Trigger, interfaces.ESTOP_SERVICE, self._on_estop)
         self.create_service(Trigger, interfaces.RESET_ESTOP_SERVICE, self._on_reset_estop)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
-        self.loop = DeadlineLoop(params["rate_hz"], self._tick, name="driver-1kHz")
-        self.context.on_shutdown(self.loop.stop)  # SIGINT shuts the context down before the node is destroyed
-        self.loop.start()
+        self.loop: DeadlineLoop | None = None
+        if not composed:
+            self.loop = DeadlineLoop(
+                params["rate_hz"],
+                self._tick,
+                name="driver-1kHz",
+                priority=params["realtime_priority"],
+                on_realtime=lambda grant: log_realtime_grant(self.get_logger(), grant),
+            )
+            self.context.on_shutdown(self.loop.stop)  # SIGINT shuts the context down before the node is destroyed
+            self.loop.start()
 
     def _on_event(self, text: str) -> None:
         self.get_logger().error(text)
@@ -108,8 +122,8 @@ class DriverNode(SuiteNode):
         readings = self.core.cycle(now_ns, period_ns)
         if not self.core.all_heard:
             return  # no actuator_states until every board has reported once (no made-up zeros downstream)
-        self._publish_states(
-            self._state_codec.encode(readings.position, readings.velocity, readings.effort, stamp_ns=time.time_ns())
+        self.publish_states(
+            self.state_codec.encode(readings.position, readings.velocity, readings.effort, stamp_ns=time.time_ns())
         )
 
     def _on_enable(self, request: Any, response: Any) -> Any:
@@ -137,7 +151,8 @@ class DriverNode(SuiteNode):
             "estopped": core.estopped,
             "safe_hold": core.safe_hold_reason,
         }
-        values.update({f"loop.{k}": v for k, v in self.loop.stats().as_dict().items()})
+        if self.loop is not None:
+            values.update(self.loop.diagnostics())
         values.update({f"count.{k}": v for k, v in core.counts.items()})
         values.update({f"clamped.{k}": v for k, v in core.clamped.items()})
         decoder = self.transport.stats().decoder
@@ -153,8 +168,9 @@ class DriverNode(SuiteNode):
         errors = [core.board_map.boards[i].name for i in np.flatnonzero(core.readings.errors)]
         if errors:
             values["board_errors"] = ", ".join(errors)
-        if core.safe_hold_reason or self.loop.error is not None:
-            level, message = Level.ERROR, core.safe_hold_reason or f"loop died: {self.loop.error!r}"
+        loop_error = None if self.loop is None else self.loop.error
+        if core.safe_hold_reason or loop_error is not None:
+            level, message = Level.ERROR, core.safe_hold_reason or f"loop died: {loop_error!r}"
         elif core.estopped:
             level, message = Level.WARN, "emergency stop latched"
         else:
@@ -171,12 +187,13 @@ class DriverNode(SuiteNode):
             "safe_hold": self.core.safe_hold_reason,
             "counts": dict(self.core.counts),
             "clamped": dict(self.core.clamped),
-            "loop": self.loop.stats().as_dict(),
+            **({} if self.loop is None else {"loop": self.loop.stats().as_dict()}),
         }
 
     def destroy_node(self) -> None:
         """Stop the loop, then close the link to the boards."""
-        self.loop.stop()
+        if self.loop is not None:
+            self.loop.stop()
         self.transport.shutdown()
         super().destroy_node()
 

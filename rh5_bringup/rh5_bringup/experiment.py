@@ -16,7 +16,7 @@ import json
 import sys
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -61,6 +61,8 @@ class ExperimentSettings:
     report: bool = True
     node_parameters: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     """Extra node parameters by node name (applied last)."""
+    composed: bool = True
+    """Driver, mapper and stabilizer in the control process (False: three processes, for development)."""
 
 
 @dataclass
@@ -141,7 +143,7 @@ def experiment_bringup(settings: ExperimentSettings, trajectory: Path, data: Tra
         )  # /clock, playback on it and the staleness bounds: bringup.yaml's sim:=physics
     for node, parameters in settings.node_parameters.items():
         bringup = bringup.with_parameters(node, **parameters)
-    return bringup
+    return replace(bringup, composed=settings.composed)
 
 
 class _Monitor:

@@ -38,6 +38,9 @@ class NodeSpec:
     parameters: dict[str, Any] = field(default_factory=dict)
     remappings: tuple[tuple[str, str], ...] = ()
     """Topic/service renames (from, to), as ``-r from:=to`` on the command line."""
+    hosts: tuple[str, ...] = ()
+    """Nodes of the bringup this node's process hosts (the control process: driver, mapper, stabilizer). They
+    run inside it when the bringup is composed, and on their own, without this node, when it is not."""
 
 
 @dataclass(frozen=True)
@@ -61,6 +64,24 @@ class Bringup:
     namespace: str
     nodes: tuple[NodeSpec, ...]
     arguments: tuple[LaunchArgument, ...] = ()
+    composed: bool = True
+    """Run hosted nodes inside their host's process (the default); False: each on its own, hosts left out."""
+
+    def processes(self) -> list[tuple[NodeSpec, tuple[NodeSpec, ...]]]:
+        """The processes to start, in description order: (node whose executable runs, nodes it hosts)."""
+        by_name = {n.name: n for n in self.nodes}
+        hosted = {name for n in self.nodes for name in n.hosts}
+        out = []
+        for node in self.nodes:
+            if node.hosts and self.composed:
+                out.append((node, tuple(by_name[name] for name in node.hosts)))
+            elif not node.hosts and not (self.composed and node.name in hosted):
+                out.append((node, ()))
+        return out
+
+    def node_names(self) -> set[str]:
+        """The nodes that appear in the ROS graph when this bringup runs."""
+        return {n.name for host, hosted in self.processes() for n in (host, *hosted)}
 
     def resolved(self, **values: str) -> Bringup:
         """A copy with every launch argument applied (``values`` override the defaults); unknown or bad values raise."""
@@ -105,6 +126,7 @@ def load_bringup(path: Path | None = None) -> Bringup:
             n["executable"],
             dict(n.get("parameters") or {}),
             tuple((str(src), str(dst)) for src, dst in (n.get("remappings") or {}).items()),
+            tuple(str(name) for name in n.get("hosts") or ()),
         )
         for n in document["nodes"]
     )
@@ -124,6 +146,11 @@ def load_bringup(path: Path | None = None) -> Bringup:
     )
     bringup = Bringup(str(document.get("namespace") or ""), nodes, arguments)
     names = {n.name for n in nodes}
+    for node in nodes:
+        unknown = sorted(set(node.hosts) - names)
+        if unknown or node.name in node.hosts:
+            msg = f"node {node.name} hosts {list(node.hosts)}: {unknown or 'itself'} not a node of the bringup"
+            raise ValueError(msg)
     for argument in arguments:
         if argument.node not in names:
             msg = f"launch argument {argument.name} sets {argument.node}.{argument.parameter}: no such node"
@@ -151,6 +178,28 @@ def node_command(node: NodeSpec, namespace: str = "") -> list[str]:
     return command
 
 
+def fully_qualified(name: str, namespace: str = "") -> str:
+    """A node's name with its namespace, as parameter files and the graph name it: /ns/name."""
+    return f"/{namespace.strip('/')}/{name}" if namespace.strip("/") else f"/{name}"
+
+
+def composed_parameters(nodes: Iterable[NodeSpec], namespace: str = "") -> dict[str, Any]:
+    """The parameter file of a process hosting several nodes: each node's parameters under its full name."""
+    return {fully_qualified(n.name, namespace): {"ros__parameters": dict(n.parameters)} for n in nodes}
+
+
+def composed_command(host: NodeSpec, hosted: tuple[NodeSpec, ...], params_file: Path, namespace: str = "") -> list[str]:
+    """The command line of a process hosting several nodes: the host's executable, its nodes keep their names
+    (so no __node remap), parameters per node from ``params_file``, remappings per node."""
+    command = [str(Path(sys.prefix) / "bin" / host.executable), "--ros-args"]
+    if namespace:
+        command += ["-r", f"__ns:=/{namespace.strip('/')}"]
+    for node in (host, *hosted):
+        for source, target in node.remappings:
+            command += ["-r", f"{node.name}:{source}:={target}"]
+    return [*command, "--params-file", str(params_file)]
+
+
 @dataclass
 class NodeProcess:
     """A started node: its process and where its output goes."""
@@ -159,6 +208,12 @@ class NodeProcess:
     process: subprocess.Popen[bytes]
     stdout_path: Path
     stderr_path: Path
+    hosted: tuple[NodeSpec, ...] = ()
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The nodes this process runs."""
+        return (self.spec.name, *(n.name for n in self.hosted))
 
     def output(self) -> str:
         """What the node printed on stdout so far."""
@@ -192,28 +247,41 @@ class SuiteRun:
     def start(self) -> None:
         """Start every node in description order."""
         self.log_dir.mkdir(parents=True, exist_ok=True)
-        for spec in self.bringup.nodes:
+        namespace = self.bringup.namespace
+        for spec, hosted in self.bringup.processes():
             stdout_path = self.log_dir / f"{spec.name}.out"
             stderr_path = self.log_dir / f"{spec.name}.err"
+            if hosted:
+                params_file = self.log_dir / f"{spec.name}.params.yaml"
+                params_file.write_text(
+                    yaml.safe_dump(composed_parameters((spec, *hosted), namespace)), encoding="utf-8"
+                )
+                command = composed_command(spec, hosted, params_file, namespace)
+            else:
+                command = node_command(spec, namespace)
             with stdout_path.open("wb") as out, stderr_path.open("wb") as err:
                 process = subprocess.Popen(
-                    node_command(spec, self.bringup.namespace),
+                    command,
                     stdout=out,
                     stderr=err,
                     stdin=subprocess.DEVNULL,
                     env=self.env,
                     start_new_session=True,
                 )
-            self.processes.append(NodeProcess(spec, process, stdout_path, stderr_path))
+            self.processes.append(NodeProcess(spec, process, stdout_path, stderr_path, hosted))
 
     def exited(self) -> list[NodeProcess]:
-        """Nodes that have stopped on their own."""
+        """Processes that have stopped on their own."""
         return [p for p in self.processes if p.process.poll() is not None]
+
+    def exited_nodes(self) -> set[str]:
+        """Nodes whose process has stopped."""
+        return {name for p in self.exited() for name in p.names}
 
     def why_missing(self, names: Iterable[str]) -> str:
         """Why nodes never appeared in the ROS graph, one per line: the exit code and last stderr line of those
         that stopped (a bad parameter, an import error), else that they are still starting."""
-        by_name = {p.spec.name: p for p in self.processes}
+        by_name = {name: p for p in self.processes for name in p.names}
         lines = []
         for name in sorted(names):
             proc = by_name.get(name)
@@ -242,7 +310,7 @@ class SuiteRun:
             proc.process.wait()
         if self._lease is not None:
             self._lease.release()
-        return {p.spec.name: p.process.returncode for p in self.processes}
+        return {name: p.process.returncode for p in self.processes for name in p.names}
 
     def __enter__(self) -> SuiteRun:
         self.start()

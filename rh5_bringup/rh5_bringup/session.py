@@ -54,10 +54,10 @@ class SuiteSession:
         self.run.start()
         return wait_for_nodes(
             self.node,
-            {n.name for n in self.bringup.nodes},
+            self.bringup.node_names(),
             self.namespace,
             timeout_s,
-            exited=lambda: {p.spec.name for p in self.run.exited()},
+            exited=self.run.exited_nodes,
         )
 
     def crashed(self) -> list[str]:

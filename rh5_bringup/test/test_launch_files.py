@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 
 from rh5_bringup import launch_files
 from rh5_bringup.launcher import load_bringup
@@ -71,20 +72,35 @@ def _launch(path: Path, **values: str) -> tuple[list[Any], list[dict[str, Any]]]
 
 @pytest.mark.parametrize("sim", ["kinematic", "physics"])
 def test_launch_file_starts_every_node_with_its_parameters(fake_launch_api: None, sim: str) -> None:
-    declared, nodes = _launch(launch_files.LAUNCH_DIR / launch_files.LAUNCH_FILE, sim=sim)
+    """By default the control process hosts driver, mapper and stabilizer (one process, one parameter file with
+    each node's parameters under its own name); separate:=true starts them on their own."""
     bringup = load_bringup()
-    assert [(d.args[0], d.kwargs["default_value"]) for d in declared] == [
-        (a.name, a.default) for a in bringup.arguments
-    ]
     resolved = bringup.resolved(sim=sim)  # what `rh5 up --sim` starts
-    assert [n["name"] for n in nodes] == [n.name for n in resolved.nodes]
-    for launched, spec in zip(nodes, resolved.nodes, strict=True):
-        assert (launched["package"], launched["executable"]) == (spec.package, spec.executable)
+    specs = {n.name: n for n in resolved.nodes}
+    declared, nodes = _launch(launch_files.LAUNCH_DIR / launch_files.LAUNCH_FILE, sim=sim)
+    assert [(d.args[0], d.kwargs["default_value"]) for d in declared] == [
+        *((a.name, a.default) for a in bringup.arguments),
+        ("separate", "false"),
+    ]
+    assert len(nodes) == len(resolved.processes())
+    for launched, (host, hosted) in zip(nodes, resolved.processes(), strict=True):
+        assert (launched["package"], launched["executable"]) == (host.package, host.executable)
         assert launched["namespace"] == resolved.namespace
-        assert launched["remappings"] == [list(pair) for pair in spec.remappings]
-        assert launched["parameters"] == [spec.parameters]
-    stabilizer = next(n for n in nodes if n["name"] == "stabilizer")["parameters"][0]
-    assert stabilizer.get("use_sim_time", False) is (sim == "physics")  # physics plays on the simulation's /clock
+        if hosted:
+            assert "name" not in launched  # a name would rename every node of the process
+            (path,) = launched["parameters"]
+            document = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+            Path(path).unlink()
+            assert document == {f"/{n.name}": {"ros__parameters": n.parameters} for n in (host, *hosted)}
+        else:
+            assert launched["name"] == host.name
+            assert launched["remappings"] == [list(pair) for pair in host.remappings]
+            assert launched["parameters"] == [host.parameters]
+    assert specs["stabilizer"].parameters.get("use_sim_time", False) is (sim == "physics")  # plays on /clock
+    _, separate = _launch(launch_files.LAUNCH_DIR / launch_files.LAUNCH_FILE, sim=sim, separate="true")
+    assert [n["name"] for n in separate] == [n.name for n in resolved.nodes if not n.hosts]
+    stabilizer = next(n for n in separate if n["name"] == "stabilizer")["parameters"][0]
+    assert stabilizer == specs["stabilizer"].parameters
 
 
 def test_rendering_follows_remappings_and_arguments(fake_launch_api: None, tmp_path: Path) -> None:

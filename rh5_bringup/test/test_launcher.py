@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
 from rh5_bringup.cli import build_parser, main
-from rh5_bringup.launcher import NodeSpec, load_bringup, node_command
+from rh5_bringup.launcher import NodeSpec, composed_command, composed_parameters, load_bringup, node_command
 from rh5_msgs_py.parameters import load_spec
 
 PACKAGE_OF_SPEC = {
@@ -16,14 +17,43 @@ PACKAGE_OF_SPEC = {
     "mapper": "rh5_hyrodyn_mapper",
     "stabilizer": "rh5_joint_stabilizer",
     "driver": "rh5_bringup",
+    "control": "rh5_bringup",
     "sim_hardware": "rh5_bringup",
     "recorder": "rh5_bringup",
 }
 
 
-def test_packaged_bringup_starts_the_six_nodes() -> None:
+def test_packaged_bringup_starts_the_control_process_by_default() -> None:
     bringup = load_bringup()
-    assert [n.name for n in bringup.nodes] == ["recorder", "sim_hardware", "driver", "mapper", "stabilizer", "planner"]
+    assert [n.name for n in bringup.nodes] == [
+        "recorder", "sim_hardware", "control", "driver", "mapper", "stabilizer", "planner"
+    ]  # fmt: skip
+    processes = [(host.name, [n.name for n in hosted]) for host, hosted in bringup.processes()]
+    assert processes == [
+        ("recorder", []), ("sim_hardware", []), ("control", ["driver", "mapper", "stabilizer"]), ("planner", [])
+    ]  # fmt: skip
+    separate = replace(bringup, composed=False)
+    assert [host.name for host, hosted in separate.processes() if not hosted] == [
+        "recorder", "sim_hardware", "driver", "mapper", "stabilizer", "planner"
+    ]  # fmt: skip
+    assert bringup.node_names() == {n.name for n in bringup.nodes}
+    assert separate.node_names() == bringup.node_names() - {"control"}
+
+
+def test_a_composed_process_gets_each_nodes_parameters_under_its_name(tmp_path: Path) -> None:
+    bringup = load_bringup().with_parameters("driver", command_timeout_s=0.5).with_parameters("control", rate_hz=500.0)
+    ((host, hosted),) = [(h, n) for h, n in bringup.processes() if n]
+    document = composed_parameters((host, *hosted), "robot1")
+    assert document["/robot1/driver"]["ros__parameters"]["command_timeout_s"] == 0.5
+    assert document["/robot1/control"]["ros__parameters"] == {"rate_hz": 500.0}
+    command = composed_command(host, hosted, tmp_path / "p.yaml", "robot1")
+    assert command[0] == str(Path(sys.prefix) / "bin" / "control_node")
+    assert "__node:=control" not in " ".join(command)  # the process's nodes keep their own names
+    assert command[-2:] == ["--params-file", str(tmp_path / "p.yaml")]
+    description = tmp_path / "bringup.yaml"
+    description.write_text("nodes:\n  - {name: a, package: p, executable: e, hosts: [b]}\n", encoding="utf-8")
+    with pytest.raises(ValueError, match="not a node of the bringup"):
+        load_bringup(description)
 
 
 def test_bringup_parameters_are_declared_and_valid_in_the_node_specs() -> None:

@@ -17,12 +17,12 @@ from std_srvs.srv import Trigger
 
 from rh5_hyrodyn_mapper.model import joint_limits
 from rh5_joint_stabilizer.balance import AnkleBalanceCorrection, ankle_axes_world
-from rh5_joint_stabilizer.controller import Measurement, SafetyLimits, StabilizerCore, State, load_gains
+from rh5_joint_stabilizer.controller import Command, Measurement, SafetyLimits, StabilizerCore, State, load_gains
 from rh5_joint_stabilizer.reference import PlannedTrajectory, TrajectoryRejectedError, validate_trajectory
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec, Level, Status, diagnostics_to_msg, joint_trajectory_from_msg
 from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS
-from rh5_msgs_py.node_runtime import SuiteNode, run_node
+from rh5_msgs_py.node_runtime import SuiteNode, log_realtime_grant, run_node
 from rh5_msgs_py.realtime import DeadlineLoop, LatestValue
 from rh5_msgs_py.trajectory_file import TrajectoryFileError, load_trajectory
 
@@ -52,9 +52,14 @@ class TrackingWindow:
 
 
 class StabilizerNode(SuiteNode):
-    """ROS wiring around StabilizerCore and its 1 kHz loop."""
+    """ROS wiring around StabilizerCore and its 1 kHz loop.
 
-    def __init__(self) -> None:
+    ``composed=True``: hosted by the control process (rh5_bringup.control_node), whose cycle calls ``step``
+    with the same cycle's measurement and publishes ``joint_commands``; the node then runs no loop and
+    subscribes to neither ``joint_states`` nor the driver's estop topic (the cycle passes the latch on).
+    """
+
+    def __init__(self, *, composed: bool = False) -> None:
         super().__init__(interfaces.STABILIZER_NODE, "rh5_joint_stabilizer", "params/stabilizer.yaml")
         params = self.params
         limits = joint_limits()
@@ -78,26 +83,36 @@ class StabilizerNode(SuiteNode):
         )
         self.measurement: LatestValue[Measurement] = LatestValue()
         self._reported_state = self.core.state
+        self.state_changed = False
         self._ros_playback = params["playback_clock"] == "ros"
         self.tracking = TrackingWindow()
         self._state_codec = JointStateCodec(JOINT_NAMES, what="joint_states")
-        self._command_codec = JointStateCodec(JOINT_NAMES)
-        self._publish_commands = self.advertise(interfaces.JOINT_COMMANDS)
+        self.command_codec = JointStateCodec(JOINT_NAMES)
+        self.publish_commands = self.advertise(interfaces.JOINT_COMMANDS)
         self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
         self.subscribe(interfaces.PLANNED_TRAJECTORY, self._on_trajectory)
-        self.subscribe_stream(interfaces.JOINT_STATES, self._on_joint_states)
-        self.subscribe(interfaces.DRIVER_ESTOP, self._on_estop)
+        if not composed:
+            self.subscribe_stream(interfaces.JOINT_STATES, self._on_joint_states)
+            self.subscribe(interfaces.DRIVER_ESTOP, self._on_estop)
         if self.balance is not None:
             self.subscribe(interfaces.SIM_BASE_POSE, self._on_base_pose)
         self.create_service(Trigger, interfaces.START_SERVICE, self._on_start)
         self.create_service(Trigger, interfaces.STOP_SERVICE, self._on_stop)
         self.create_service(Trigger, interfaces.HOLD_SERVICE, self._on_hold)
-        self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self.publish_status)
         if params["trajectory_file"]:
             self._load_file(params["trajectory_file"])
-        self.loop = DeadlineLoop(params["rate_hz"], self._tick, name="stabilizer-1kHz")
-        self.context.on_shutdown(self.loop.stop)  # SIGINT shuts the context down before the node is destroyed
-        self.loop.start()
+        self.loop: DeadlineLoop | None = None
+        if not composed:
+            self.loop = DeadlineLoop(
+                params["rate_hz"],
+                self._tick,
+                name="stabilizer-1kHz",
+                priority=params["realtime_priority"],
+                on_realtime=lambda grant: log_realtime_grant(self.get_logger(), grant),
+            )
+            self.context.on_shutdown(self.loop.stop)  # SIGINT shuts the context down before the node is destroyed
+            self.loop.start()
 
     def _log_event(self, text: str) -> None:
         self.events.append(text)
@@ -188,24 +203,34 @@ class StabilizerNode(SuiteNode):
 
     # --- the 1 kHz loop ----------------------------------------------------------------------------------------------
 
-    def _tick(self, now_ns: int, period_ns: int) -> None:
-        measurement, _, _ = self.measurement.try_get()
+    def step(self, now_ns: int, period_ns: int, measurement: Measurement | None) -> Command | None:
+        """One stabilizer update on ``measurement``: the command to send (None when idle or stopped).
+
+        ``state_changed`` then says whether the state moved, which is published at once (recordings then know
+        when playback started to the millisecond).
+        """
         playback_ns = self.get_clock().now().nanoseconds if self._ros_playback else None
         command = self.core.update(now_ns, period_ns, measurement, playback_ns)
-        if self.core.state is not self._reported_state:
-            # a transition is published at once: recordings then know when playback started to the millisecond
-            self._reported_state = self.core.state
-            self._publish_status()
-        if command is None:
-            return
-        self.tracking.add(self.core.tracking_error)
-        self._publish_commands(
-            self._command_codec.encode(command.position, command.velocity, command.effort, stamp_ns=time.time_ns())
-        )
+        self.state_changed = self.core.state is not self._reported_state
+        self._reported_state = self.core.state
+        if command is not None:
+            self.tracking.add(self.core.tracking_error)
+        return command
+
+    def _tick(self, now_ns: int, period_ns: int) -> None:
+        measurement, _, _ = self.measurement.try_get()
+        command = self.step(now_ns, period_ns, measurement)
+        if self.state_changed:
+            self.publish_status()
+        if command is not None:
+            self.publish_commands(
+                self.command_codec.encode(command.position, command.velocity, command.effort, stamp_ns=time.time_ns())
+            )
 
     # --- reporting ---------------------------------------------------------------------------------------------------
 
-    def _publish_status(self) -> None:
+    def publish_status(self) -> None:
+        """The stabilizer's /diagnostics status: state, reason, loop timing (on its own) and tracking errors."""
         rms, peak = self.tracking.rms_and_max()
         trajectory = self.core.trajectory
         values: dict[str, object] = {
@@ -214,7 +239,8 @@ class StabilizerNode(SuiteNode):
             "trajectory_duration_s": round(trajectory.duration, 6) if trajectory is not None else "none",
             "trajectory_rejected": self.core.rejection,
         }
-        values.update({f"loop.{k}": v for k, v in self.loop.stats().as_dict().items()})
+        if self.loop is not None:
+            values.update(self.loop.diagnostics())
         values.update({f"rms_error.{j}": round(float(e), 6) for j, e in zip(JOINT_NAMES, rms, strict=True)})
         values.update({f"max_error.{j}": round(float(e), 6) for j, e in zip(JOINT_NAMES, peak, strict=True)})
         if self.balance is not None:
@@ -222,7 +248,7 @@ class StabilizerNode(SuiteNode):
         level = (
             Level.WARN if self.core.state == State.HOLDING and "requested" not in self.core.last_reason else Level.OK
         )
-        if self.loop.error is not None:
+        if self.loop is not None and self.loop.error is not None:
             level, values["loop_error"] = Level.ERROR, repr(self.loop.error)
         status = Status("rh5/stabilizer", level, self.core.last_reason or self.core.state.value, values, "rh5")
         # wall time, also under use_sim_time: every stamp of the suite is on one clock (/clock maps it to sim time)
@@ -233,13 +259,14 @@ class StabilizerNode(SuiteNode):
         return {
             **super().summary(),
             "state": self.core.state.value,
-            "loop": self.loop.stats().as_dict(),
+            **({} if self.loop is None else {"loop": self.loop.stats().as_dict()}),
             "events": list(self.events)[-10:],
         }
 
     def destroy_node(self) -> None:
         """Stop the loop thread before the node goes away."""
-        self.loop.stop()
+        if self.loop is not None:
+            self.loop.stop()
         super().destroy_node()
 
 

@@ -103,6 +103,7 @@ PLANNER_NODE: Final = "planner"
 MAPPER_NODE: Final = "mapper"
 STABILIZER_NODE: Final = "stabilizer"
 DRIVER_NODE: Final = "driver"
+CONTROL_NODE: Final = "control"
 SIM_HARDWARE_NODE: Final = "sim_hardware"
 RECORDER_NODE: Final = "recorder"
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import sys
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import rclpy
@@ -22,11 +22,13 @@ from rclpy.subscription import Subscription
 
 from rh5_msgs_py.interfaces import Topic, message_class
 from rh5_msgs_py.parameters import declare_parameters, load_spec, parameter_values
+from rh5_msgs_py.realtime import RTPRIO_FIX, RealtimeGrant
 from rh5_msgs_py.ros_env import apply_safe_defaults
 from rh5_msgs_py.streams import StreamThread
 
 SUMMARY_PREFIX = "RH5_SUMMARY "
 EXIT_BAD_START = 2
+EXECUTOR_WAIT_S = 0.1
 
 
 class SuiteNode(Node):
@@ -39,6 +41,9 @@ class SuiteNode(Node):
         self.seen: Counter[str] = Counter()
         self.sent: Counter[str] = Counter()
         self._streams: StreamThread | None = None
+        self.executor_gate: Callable[[], object] | None = None
+        """Called by ``run_node`` before the executor waits and before each callback it runs: a real-time loop
+        of the process sets it to keep the executor's work in the loop's slack."""
 
     @property
     def params(self) -> dict[str, Any]:
@@ -97,24 +102,50 @@ class SuiteNode(Node):
         return {"node": self.get_name(), "seen": dict(self.seen), "sent": dict(self.sent)}
 
 
-def run_node(factory: Callable[[], SuiteNode], args: list[str] | None = None) -> None:
-    """Run one node until SIGINT/SIGTERM; exit 0 when stopped, 2 when it could not start.
+_refusal_warned = False
+
+
+def log_realtime_grant(logger: Any, grant: RealtimeGrant) -> None:
+    """Log what a loop was granted: info when real-time, one warning per process naming the fix when refused."""
+    global _refusal_warned  # noqa: PLW0603 (one warning per process, however many loops)
+    if grant.granted or not grant.requested:
+        logger.info(f"loop scheduling: {grant.describe()}")
+    elif not _refusal_warned:
+        _refusal_warned = True
+        logger.warning(
+            f"real-time scheduling refused: {grant.reason}. The 1 kHz loop runs at normal priority and will miss "
+            f"deadlines under load. To fix, {RTPRIO_FIX}."
+        )
+
+
+def run_node(factory: Callable[[], SuiteNode | Sequence[SuiteNode]], args: list[str] | None = None) -> None:
+    """Run one node, or the nodes of one process (``factory`` returns them all), until SIGINT/SIGTERM; exit 0
+    when stopped, 2 when it could not start. Each node prints its summary line when it stops (the first node
+    last: a process hosting several nodes lists its host node first).
 
     A stop that arrives while the node is still being built ends it cleanly too, with a summary
     saying so (the launcher and tests may signal a node as soon as it shows up in the graph).
     """
     apply_safe_defaults()
     rclpy.init(args=args if args is not None else sys.argv)
-    node: SuiteNode | None = None
+    nodes: list[SuiteNode] = []
     stopped = False
     try:
-        node = factory()
-        rclpy.spin(node)
+        built = factory()
+        nodes = [built] if isinstance(built, SuiteNode) else list(built)
+        executor = rclpy.get_global_executor()
+        for node in nodes:
+            executor.add_node(node)
+        gate = nodes[0].executor_gate
+        if gate is None:
+            executor.spin()
+        else:
+            _spin_gated(executor, gate)
     except (KeyboardInterrupt, ExternalShutdownException):
         stopped = True
     except Exception as err:
         if rclpy.ok():
-            if node is not None:
+            if nodes:
                 raise
             print(f"cannot start: {err}", file=sys.stderr, flush=True)
             rclpy.try_shutdown()
@@ -123,18 +154,41 @@ def run_node(factory: Callable[[], SuiteNode], args: list[str] | None = None) ->
         print(f"ignored during shutdown: {err!r}", file=sys.stderr, flush=True)
         stopped = True
     finally:
-        if node is not None:
+        for node in reversed(nodes):
             print(SUMMARY_PREFIX + json.dumps(node.summary(), sort_keys=True), flush=True)
+        for node in nodes:
             node.destroy_node()
-        elif stopped:
+        if not nodes and stopped:
             summary = {"node": None, "seen": {}, "sent": {}, "stopped": "during start-up"}
             print(SUMMARY_PREFIX + json.dumps(summary, sort_keys=True), flush=True)
         rclpy.try_shutdown()
 
 
+def _spin_gated(executor: Any, gate: Callable[[], object]) -> None:
+    """``executor.spin()`` with ``gate`` called before every wait and every callback (rclpy's own spin_once,
+    split where the gate goes, through the executor's public ``wait_for_ready_callbacks``)."""
+    from rclpy.executors import ShutdownException, TimeoutException  # noqa: PLC0415
+
+    while executor.context.ok():
+        gate()
+        try:
+            handler, _, _ = executor.wait_for_ready_callbacks(timeout_sec=EXECUTOR_WAIT_S)
+        except TimeoutException:
+            continue
+        except ShutdownException:
+            return
+        gate()
+        handler()
+        if handler.exception() is not None:
+            raise handler.exception()
+
+
+def parse_summaries(output: str) -> list[dict[str, Any]]:
+    """Every summary line in a process's captured stdout, in the order printed."""
+    return [json.loads(line[len(SUMMARY_PREFIX) :]) for line in output.splitlines() if line.startswith(SUMMARY_PREFIX)]
+
+
 def parse_summary(output: str) -> dict[str, Any] | None:
-    """Find a node's summary line in its captured stdout."""
-    for line in reversed(output.splitlines()):
-        if line.startswith(SUMMARY_PREFIX):
-            return json.loads(line[len(SUMMARY_PREFIX) :])
-    return None
+    """The last summary line in a process's captured stdout: its node's, or a composed process's host node's."""
+    summaries = parse_summaries(output)
+    return summaries[-1] if summaries else None

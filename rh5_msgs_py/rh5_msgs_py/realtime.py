@@ -1,15 +1,24 @@
-"""The 1 kHz machinery shared by the driver, the stabilizer and the simulated boards.
+"""The 1 kHz machinery shared by the control cycle, the driver, the stabilizer and the simulated boards.
 
 rclpy timers drop ticks at 1 kHz here (design/ros2_wheels.md, 3d), so each periodic loop
-runs in its own thread on absolute deadlines in integer nanoseconds: advance the deadline
-by one period, sleep until shortly before it, then spin the rest (``time.sleep`` alone
-overshoots by 50-100 us). ROS callbacks hand data to the loop through a ``LatestValue``:
-one slot that the loop reads without ever waiting for a writer.
+runs in its own thread on absolute deadlines in integer nanoseconds. A loop given a real-time
+priority asks for ``SCHED_FIFO`` for its thread only, locks the process's memory and keeps the
+garbage collector out of its cycles (``realtime.py``'s ``request_realtime`` and
+``GarbageCollection``); under ``SCHED_FIFO`` a plain sleep to the deadline wakes within
+microseconds. Without it (refused by the OS, or priority 0) the loop sleeps until shortly before
+the deadline and spins the rest (``time.sleep`` alone overshoots by 50-100 us there).
+ROS callbacks hand data to the loop through a ``LatestValue``: one slot that the loop reads
+without ever waiting for a writer; the loop hands its topics to a ``RealtimePublisher``, whose
+thread publishes them and which drops a sample rather than make the loop wait.
 """
 
 from __future__ import annotations
 
 import ctypes
+import errno
+import gc
+import os
+import queue
 import sys
 import threading
 import time
@@ -27,6 +36,14 @@ SPIN_NS = 50_000  # busy-wait this long before each deadline (sleeps here oversh
 TIMER_SLACK_NS = 1_000  # Linux's default 50 us timer slack would be most of the jitter budget
 GIL_SWITCH_INTERVAL_S = 5e-5  # CPython's default 5 ms would let an executor thread delay a tick by 5 ms
 STATS_WINDOW = 1000  # cycles kept for the jitter percentiles (1 s at 1 kHz)
+MCL_CURRENT, MCL_FUTURE = 1, 2  # mlockall flags (Linux <sys/mman.h>)
+RTPRIO_FIX = (
+    "grant real-time scheduling: on a robot PC add '@realtime - rtprio 98' and '@realtime - memlock unlimited' to "
+    "/etc/security/limits.conf, add the user to the group 'realtime' and log in again (README, 'Real-time'); "
+    "or run with CAP_SYS_NICE (e.g. as root)"
+)
+GC_SLACK_NS = 200_000  # collect young garbage only when at least this much of the period is left
+GC_FULL_SLACK_NS = 600_000  # ... and all generations only with this much
 
 
 class LatestValue(Generic[T]):
@@ -153,28 +170,203 @@ def set_timer_slack(ns: int) -> bool:
         return False
 
 
+@dataclass(frozen=True)
+class RealtimeGrant:
+    """What the OS granted a loop thread: SCHED_FIFO at ``priority`` (0: normal scheduling) and locked memory."""
+
+    requested: int
+    priority: int
+    memory_locked: bool
+    reason: str = ""
+    """Why real-time was not granted (empty when it was, or when none was requested)."""
+
+    @property
+    def granted(self) -> bool:
+        """Whether the loop runs under SCHED_FIFO."""
+        return self.priority > 0
+
+    def describe(self) -> str:
+        """One line for diagnostics and reports, e.g. 'SCHED_FIFO 50, memory locked'."""
+        if self.granted:
+            return f"SCHED_FIFO {self.priority}, memory {'locked' if self.memory_locked else 'not locked'}"
+        if not self.requested:
+            return "normal scheduling (not requested)"
+        return f"normal scheduling: SCHED_FIFO {self.requested} refused ({self.reason})"
+
+
+_memory_lock = threading.Lock()
+_memory_locked: bool | None = None
+
+
+def lock_memory() -> bool:
+    """Lock the process's current and future pages in RAM (mlockall), once per process; False when refused.
+
+    A page fault in a cycle (memory swapped out, or a fresh page touched) costs tens of microseconds to
+    milliseconds; locked, every page the process maps is resident from then on.
+    """
+    global _memory_locked  # noqa: PLW0603 (one lock per process, whichever loop asks first)
+    with _memory_lock:
+        if _memory_locked is None:
+            try:
+                libc = ctypes.CDLL(None, use_errno=True)
+                _memory_locked = libc.mlockall(MCL_CURRENT | MCL_FUTURE) == 0
+            except (OSError, AttributeError):  # not Linux
+                _memory_locked = False
+        return _memory_locked
+
+
+def request_realtime(priority: int) -> RealtimeGrant:
+    """Put the calling thread under SCHED_FIFO at ``priority`` (1-99) and lock memory; 0 asks for nothing.
+
+    Only the calling thread is raised (Linux schedules threads, and pid 0 means the caller), so the
+    process's other threads (executor, publisher) and the other processes keep normal priority.
+    A refusal (no CAP_SYS_NICE and no rtprio limit: EPERM) is reported in the grant, never raised.
+    """
+    if priority <= 0:
+        return RealtimeGrant(0, 0, False)
+    if not hasattr(os, "sched_setscheduler"):
+        return RealtimeGrant(priority, 0, False, "this OS has no SCHED_FIFO")
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except OSError as err:
+        why = "no permission" if err.errno == errno.EPERM else os.strerror(err.errno or 0)
+        limit = _rtprio_limit()
+        return RealtimeGrant(priority, 0, False, f"{why}; rtprio limit {limit}")
+    return RealtimeGrant(priority, priority, lock_memory())
+
+
+def _rtprio_limit() -> str:
+    """The process's RLIMIT_RTPRIO soft limit as text (for the refusal message)."""
+    try:
+        import resource  # noqa: PLC0415 (POSIX only)
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_RTPRIO)
+    except (ImportError, AttributeError, OSError):
+        return "unknown"
+    return "unlimited" if soft == resource.RLIM_INFINITY else str(soft)
+
+
+class GarbageCollection:
+    """Keeps Python's cyclic garbage collector out of the loops' cycles, process-wide.
+
+    While any loop holds it, automatic collection is off and everything allocated at start-up is frozen
+    (``gc.freeze``: never scanned again); the loops collect the young generations in the slack after a
+    cycle instead (``collect_in_slack``), where a collection cannot delay a deadline. The last loop to
+    let go turns automatic collection back on.
+    """
+
+    _lock = threading.Lock()
+    _holders = 0
+    _was_enabled = True
+
+    @classmethod
+    def acquire(cls) -> None:
+        """Freeze the start-up heap and turn automatic collection off (counted per loop)."""
+        with cls._lock:
+            if cls._holders == 0:
+                cls._was_enabled = gc.isenabled()
+                gc.disable()
+                gc.collect()
+                gc.freeze()
+            cls._holders += 1
+
+    @classmethod
+    def release(cls) -> None:
+        """Undo ``acquire``; the last holder unfreezes and re-enables automatic collection."""
+        with cls._lock:
+            cls._holders = max(0, cls._holders - 1)
+            if cls._holders == 0:
+                gc.unfreeze()
+                if cls._was_enabled:
+                    gc.enable()
+
+    @staticmethod
+    def collect_in_slack(slack_ns: int, window: LatencyWindow) -> None:
+        """Collect the young generations when due (by gc's own thresholds) and ``slack_ns`` is enough; the
+        oldest only when there is more slack (its collection is the long one)."""
+        counts, thresholds = gc.get_count(), gc.get_threshold()
+        if counts[0] < thresholds[0] or slack_ns < GC_SLACK_NS:
+            return
+        generation = 1 if counts[1] >= thresholds[1] else 0
+        if counts[2] >= thresholds[2] and slack_ns >= GC_FULL_SLACK_NS:
+            generation = 2  # a full collection costs 0.1-0.4 ms here even with the start-up heap frozen
+        start = time.monotonic_ns()
+        gc.collect(generation)
+        window.add(time.monotonic_ns() - start)
+
+
 class LoopThread:
     """A named daemon thread that runs ``_loop`` until ``stop``: the start/stop, timing record and error hand-over
     that every loop of the suite shares. An exception that ends the loop is kept in ``error`` for the owner,
-    which decides what a dead loop means. ``stop`` is idempotent."""
+    which decides what a dead loop means. ``stop`` is idempotent.
 
-    def __init__(self, period_ns: int, name: str) -> None:
+    ``priority`` > 0 asks for SCHED_FIFO for the loop thread (``request_realtime``) and keeps the garbage
+    collector out of the cycles; the outcome is in ``realtime`` once the thread has started, and
+    ``on_realtime`` hears it first (the owner logs a refusal, which names the fix).
+    """
+
+    def __init__(
+        self,
+        period_ns: int,
+        name: str,
+        *,
+        priority: int = 0,
+        on_realtime: Callable[[RealtimeGrant], None] | None = None,
+    ) -> None:
         self.period_ns = period_ns
+        self.priority = priority
         self.timer = LoopTimer(period_ns)
         self.error: BaseException | None = None
+        self.realtime: RealtimeGrant | None = None
+        self.gc_pauses = LatencyWindow(200)
+        self._on_realtime = on_realtime
+        self._granted = threading.Event()
+        self._idle = threading.Event()
+        self._idle.set()
+        self.next_wake_ns = 0
+        """When the loop next needs the interpreter (monotonic ns; 0: not scheduled yet)."""
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
 
     def start(self) -> None:
         """Start the loop thread (and make the interpreter hand the GIL over often enough for 1 kHz)."""
         sys.setswitchinterval(min(sys.getswitchinterval(), GIL_SWITCH_INTERVAL_S))
+        if self.priority > 0:
+            GarbageCollection.acquire()
         self._thread.start()
+
+    def wait_for_realtime(self, timeout_s: float = 2.0) -> RealtimeGrant | None:
+        """The grant, once the thread has asked for it (None if it has not within ``timeout_s``)."""
+        self._granted.wait(timeout_s)
+        return self.realtime
 
     def stop(self, timeout_s: float = 2.0) -> None:
         """Ask the loop to stop and wait for it."""
         self._stop.set()
         if self._thread.is_alive() and threading.current_thread() is not self._thread:
             self._thread.join(timeout_s)
+        self._idle.set()  # nobody waits for a stopped loop
+
+    def wait_for_slack(self, min_ns: int, timeout_s: float = 0.1) -> bool:
+        """Block until the loop is between cycles with at least ``min_ns`` before its next wake-up.
+
+        The process's other threads (publisher, executor) call this before a piece of work, so that the loop
+        does not find the interpreter lock taken when it wakes or while it computes: Python runs one thread at
+        a time, and a thread that holds the lock delays the loop by up to the switch interval at every hand-over.
+        False after ``timeout_s`` (a loop that stopped or overruns leaves the caller to go on anyway).
+        """
+        deadline = time.monotonic_ns() + int(timeout_s * 1e9)
+        while not self._stop.is_set():
+            now = time.monotonic_ns()
+            if now >= deadline:
+                return False
+            if not self._idle.wait((deadline - now) / 1e9):
+                return False
+            now = time.monotonic_ns()
+            if self.next_wake_ns - now >= min_ns:
+                return True
+            time.sleep(max(self.next_wake_ns - now, 0) / 1e9 + 20e-6)  # past the wake-up: the cycle then runs
+        return True
 
     @property
     def running(self) -> bool:
@@ -185,12 +377,29 @@ class LoopThread:
         """Timing of the latest cycles."""
         return self.timer.stats()
 
+    def diagnostics(self) -> dict[str, object]:
+        """``loop.*`` values for /diagnostics: timing, the real-time grant and the garbage collector's pauses."""
+        values: dict[str, object] = {f"loop.{k}": v for k, v in self.stats().as_dict().items()}
+        grant = self.realtime
+        values["loop.realtime"] = "pending" if grant is None else grant.describe()
+        values["loop.realtime_granted"] = bool(grant is not None and grant.granted)
+        values.update({f"loop.gc_{k}": round(v, 1) for k, v in self.gc_pauses.percentiles_us().items()})
+        return values
+
     def _run(self) -> None:
         try:
+            self.realtime = request_realtime(self.priority)
+            self._granted.set()
+            if self._on_realtime is not None:
+                self._on_realtime(self.realtime)
             self._loop()
         except BaseException as err:  # surfaced to the owner
             self.error = err
             raise
+        finally:
+            self._granted.set()
+            if self.priority > 0:
+                GarbageCollection.release()
 
     def _loop(self) -> None:
         """The loop body: run until ``self._stop`` is set, recording each cycle in ``self.timer``."""
@@ -204,24 +413,36 @@ class DeadlineLoop(LoopThread):
     skips the lost ticks instead of bursting to catch up.
     """
 
-    def __init__(self, rate_hz: float, step: Callable[[int, int], None], name: str = "rh5-loop") -> None:
+    def __init__(
+        self,
+        rate_hz: float,
+        step: Callable[[int, int], None],
+        name: str = "rh5-loop",
+        *,
+        priority: int = 0,
+        on_realtime: Callable[[RealtimeGrant], None] | None = None,
+    ) -> None:
         if not rate_hz > 0:
             msg = f"rate_hz must be positive, got {rate_hz}"
             raise ValueError(msg)
-        super().__init__(round(1e9 / rate_hz), name)
+        super().__init__(round(1e9 / rate_hz), name, priority=priority, on_realtime=on_realtime)
         self._step = step
 
     def _loop(self) -> None:
         set_timer_slack(TIMER_SLACK_NS)
+        realtime = self.realtime is not None and self.realtime.granted
+        spin_ns = 0 if realtime else SPIN_NS  # under SCHED_FIFO the sleep itself wakes within microseconds
+        collect = self.priority > 0
         period = self.period_ns
         deadline = time.monotonic_ns() + period
         while not self._stop.is_set():
             remaining = deadline - time.monotonic_ns()
-            if remaining > SPIN_NS:
-                time.sleep((remaining - SPIN_NS) / 1e9)
+            if remaining > spin_ns:
+                time.sleep((remaining - spin_ns) / 1e9)
             while time.monotonic_ns() < deadline:
                 time.sleep(0)  # yields the GIL: other loops of the process must not wait for this spin
             now = time.monotonic_ns()
+            self._idle.clear()
             self.timer.record(now)
             self._step(now, period)
             deadline += period
@@ -230,3 +451,76 @@ class DeadlineLoop(LoopThread):
                 missed = (finished - deadline) // period + 1
                 self.timer.deadline_misses += int(missed)
                 deadline += int(missed) * period
+            elif collect:
+                GarbageCollection.collect_in_slack(deadline - finished, self.gc_pauses)
+            self.next_wake_ns = deadline
+            self._idle.set()
+
+
+class RealtimePublisher(Generic[T]):
+    """Publishes what a real-time loop hands over, from a thread of its own; the loop never waits for it.
+
+    ``try_publish`` queues the sample when the thread is idle and otherwise drops it (counted in
+    ``dropped``): a slow publisher or a stalled DDS costs samples on the topics, never a cycle.
+    The idea of realtime_tools' RealtimePublisher, with the message building moved out of the loop too.
+    """
+
+    def __init__(self, publish: Callable[[T], None], name: str = "rh5-publisher") -> None:
+        self._publish = publish
+        self._queue: queue.SimpleQueue[T | None] = queue.SimpleQueue()
+        self._busy = False
+        self.published = 0
+        self.dropped = 0
+        self.error: BaseException | None = None
+        self.duration = LatencyWindow()
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        self._stopped = False
+        self.on_start: Callable[[], object] | None = None
+        """Called first in the publishing thread (e.g. to set its scheduling)."""
+
+    def start(self) -> None:
+        """Start the publishing thread."""
+        self._thread.start()
+
+    def try_publish(self, sample: T) -> bool:
+        """Hand ``sample`` over without blocking; False when it was dropped (the previous one is in flight)."""
+        if self._busy or not self._queue.empty() or self._stopped:
+            self.dropped += 1
+            return False
+        self._busy = True
+        self._queue.put(sample)
+        return True
+
+    def stop(self, timeout_s: float = 2.0) -> None:
+        """Publish what is queued, then end the thread (idempotent)."""
+        if not self._stopped:
+            self._stopped = True
+            self._queue.put(None)
+        if self._thread.is_alive() and threading.current_thread() is not self._thread:
+            self._thread.join(timeout_s)
+
+    def diagnostics(self) -> dict[str, object]:
+        """``publish.*`` values for /diagnostics: samples published and dropped, time to publish one."""
+        values: dict[str, object] = {"publish.published": self.published, "publish.dropped": self.dropped}
+        values.update({f"publish.{k}": round(v, 1) for k, v in self.duration.percentiles_us().items()})
+        if self.error is not None:
+            values["publish.error"] = repr(self.error)
+        return values
+
+    def _run(self) -> None:
+        if self.on_start is not None:
+            self.on_start()
+        while True:
+            sample = self._queue.get()
+            if sample is None:
+                return
+            start = time.monotonic_ns()
+            try:
+                self._publish(sample)
+            except Exception as err:  # kept for diagnostics; the loop goes on without its topics
+                self.error = err
+            else:
+                self.published += 1
+            finally:
+                self.duration.add(time.monotonic_ns() - start)
+                self._busy = False

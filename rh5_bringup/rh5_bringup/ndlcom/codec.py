@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import binascii
 import struct
+from collections.abc import Iterable
 from typing import Final, NamedTuple
 
 __all__ = [
@@ -100,6 +101,12 @@ _REVERSE_BITS: Final = bytes(int(f"{b:08b}"[::-1], 2) for b in range(256))
 """Maps a byte to its bit-reversed value (bytes.translate table)."""
 
 
+_FCS_LE: Final[tuple[bytes, ...]] = tuple(
+    bytes((_REVERSE_BITS[crc >> 8], _REVERSE_BITS[crc & 0xFF])) for crc in range(0x10000)
+)
+"""The FCS bytes (little-endian, reflected) for each value of the non-reflected CRC that crc_hqx computes."""
+
+
 def fcs16_reference(data: bytes, fcs: int = FCS_INIT) -> int:
     """The RFC 1662 FCS-16 by the book: the table loop, one byte at a time (the specification, and the test oracle)."""
     table = FCS_TABLE
@@ -174,6 +181,26 @@ class FrameEncoder:
     def encode(self, receiver: int, payload: bytes) -> bytes:
         """The next frame from this sender to ``receiver``."""
         return encode_frame(receiver, self.sender, self.counter.next(receiver), payload)
+
+    def encode_many(self, receivers: Iterable[int], payloads: Iterable[bytes]) -> list[bytes]:
+        """The next frame to each receiver, in order: the bytes of ``encode`` per pair, in one tight loop (the
+        driver's 1 kHz cycle encodes one frame per board; the per-call layers of ``encode`` cost it ~2x)."""
+        counters = self.counter._next
+        sender, pack, crc_hqx, reverse, fcs_bytes = self.sender, HEADER.pack, binascii.crc_hqx, _REVERSE_BITS, _FCS_LE
+        frames = []
+        for receiver, payload in zip(receivers, payloads, strict=True):
+            try:
+                counter = counters[receiver]
+                raw = pack(receiver, sender, counter, len(payload)) + payload
+            except (struct.error, IndexError, TypeError):
+                encode_frame(receiver, sender, 0, payload)  # raises the FrameError that says what is wrong
+                raise
+            counters[receiver] = (counter + 1) & 0xFF
+            raw += fcs_bytes[crc_hqx(raw.translate(reverse), FCS_INIT)]
+            if _ESC_BYTES in raw or _FLAG_BYTES in raw:
+                raw = raw.replace(_ESC_BYTES, _ESCAPED_ESC).replace(_FLAG_BYTES, _ESCAPED_FLAG)
+            frames.append(_FLAG_BYTES + raw + _FLAG_BYTES)
+        return frames
 
 
 # --------------------------------------------------------------------------------------------------- statistics

@@ -37,10 +37,12 @@ __all__ = [
     "decode_command",
     "decode_telemetry",
     "decode_telemetry_many",
+    "decode_telemetry_of",
     "encode_command",
     "encode_commands",
     "encode_telemetry",
     "encode_telemetry_many",
+    "is_telemetry_v1",
     "payload_type",
 ]
 
@@ -391,6 +393,7 @@ TELEMETRY_DTYPE: Final = np.dtype(
 )
 assert COMMAND_DTYPE.itemsize == COMMAND_LAYOUT.size
 assert TELEMETRY_DTYPE.itemsize == TELEMETRY_LAYOUT.size
+_TELEMETRY_SIZE: Final = TELEMETRY_LAYOUT.size
 
 _MAX_MODE: Final = max(CommandMode)
 _USED_MASK: Final = np.array([_USED_FIELDS[m] for m in CommandMode], dtype=bool)  # (mode, field)
@@ -497,6 +500,36 @@ def decode_telemetry_many(payloads: Sequence[bytes], table: ScalingTable) -> Tel
         rec["position"] * table.lsb[0],
         rec["velocity"] * table.lsb[1],
         rec["effort"] * table.lsb[2],
+        rec["current"] * CURRENT_LSB,
+        rec["temperature"] * TEMPERATURE_LSB,
+    )
+
+
+def is_telemetry_v1(data: bytes) -> bool:
+    """Whether ``data`` has the size, type and version of a TELEMETRY v1 payload (the cheap checks, per frame)."""
+    return len(data) == _TELEMETRY_SIZE and data[0] == PayloadType.TELEMETRY and data[1] == TELEMETRY_VERSION
+
+
+def decode_telemetry_of(
+    payloads: Sequence[bytes], boards: np.ndarray, table: ScalingTable
+) -> tuple[np.ndarray, TelemetryArrays]:
+    """Decode TELEMETRY v1 payloads of the boards at ``boards`` (table indices, any subset) in one pass.
+
+    The payloads must pass ``is_telemetry_v1``; returns which of them also pass the mode and reserved-field
+    checks of ``decode_telemetry`` (the rest are to be dropped) and the arrays of all of them, in SI units.
+    """
+    rec = np.frombuffer(b"".join(payloads), dtype=TELEMETRY_DTYPE)
+    valid = (rec["mode"] <= _MAX_MODE) & (rec["reserved"] == 0) & (rec["reserved2"] == 0)
+    lsb = table.lsb[:, boards]
+    return valid, TelemetryArrays(
+        rec["mode"],
+        rec["status"],
+        rec["errors"],
+        rec["sequence"],
+        rec["board_time_us"],
+        rec["position"] * lsb[0],
+        rec["velocity"] * lsb[1],
+        rec["effort"] * lsb[2],
         rec["current"] * CURRENT_LSB,
         rec["temperature"] * TEMPERATURE_LSB,
     )

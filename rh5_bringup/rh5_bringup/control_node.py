@@ -1,0 +1,146 @@
+"""The control process: the driver, mapper and stabilizer nodes in one process, run by one real-time cycle.
+
+As ros2_control's controller manager does, the ``control`` node owns a single 1 kHz loop
+(rh5_bringup.control_cycle: read telemetry -> map -> stabilise -> map with the limits -> write
+commands) under SCHED_FIFO, and hosts the ``driver``, ``mapper`` and ``stabilizer`` nodes with their
+own names, parameters, services and diagnostics. The four 1 kHz topics (``actuator_states``,
+``joint_states``, ``joint_commands``, ``actuator_commands``) keep their names, types and rates; a
+publisher thread at normal priority sends them, dropping a sample rather than delaying the cycle.
+``/diagnostics`` status ``rh5/control``: loop timing, the real-time grant, telemetry-to-command
+latency, cycle duration and publisher drops.
+
+    ros2 run rh5_bringup control_node --ros-args --params-file control.yaml   # (rh5 up starts it)
+"""
+
+from __future__ import annotations
+
+from typing import Any, Final
+
+from rh5_bringup.control_cycle import ControlCycle, CycleSample
+from rh5_bringup.driver_node import DriverNode
+from rh5_hyrodyn_mapper.mapper_node import MapperNode
+from rh5_joint_stabilizer.stabilizer_node import StabilizerNode
+from rh5_msgs_py import interfaces
+from rh5_msgs_py.conversions import Level, Status, diagnostics_to_msg
+from rh5_msgs_py.node_runtime import SuiteNode, log_realtime_grant, run_node
+from rh5_msgs_py.realtime import DeadlineLoop, RealtimePublisher, request_realtime
+
+DIAGNOSTICS_PERIOD_S: Final = 1.0
+PUBLISH_SLACK_NS: Final = 150_000
+"""Time one message takes to build and publish, with margin: the publisher starts one only with this much slack."""
+HELPER_PRIORITY_BELOW: Final = 10
+"""The publisher and executor threads run this far below the cycle's SCHED_FIFO priority."""
+EXECUTOR_SLACK_NS: Final = 300_000
+"""The same for a wait-set rebuild or a callback of the executor (diagnostics, services, /clock)."""
+
+
+class ControlNode(SuiteNode):
+    """Owns the control cycle over the hosted driver, mapper and stabilizer nodes."""
+
+    def __init__(self, driver: DriverNode, mapper: MapperNode, stabilizer: StabilizerNode) -> None:
+        super().__init__(interfaces.CONTROL_NODE, "rh5_bringup", "params/control.yaml")
+        self.driver, self.mapper, self.stabilizer = driver, mapper, stabilizer
+        self.publisher: RealtimePublisher[CycleSample] = RealtimePublisher(self._publish, name="control-publisher")
+        self.cycle = ControlCycle(
+            driver.core,
+            mapper.core,
+            stabilizer.step,
+            estop_to_stabilizer=stabilizer.core.set_estop,
+            state_changed=lambda: stabilizer.state_changed,
+            hand_off=self.publisher.try_publish,
+        )
+        self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
+        params = self.params
+        self.loop = DeadlineLoop(
+            params["rate_hz"],
+            self.cycle.step,
+            name="control-1kHz",
+            priority=params["realtime_priority"],
+            on_realtime=lambda grant: log_realtime_grant(self.get_logger(), grant),
+        )
+        self.context.on_shutdown(self.loop.stop)  # SIGINT shuts the context down before the nodes are destroyed
+        self.executor_gate = lambda: self.loop.wait_for_slack(EXECUTOR_SLACK_NS)
+        # The publisher and the executor share the interpreter lock with the cycle. At normal priority the OS may
+        # preempt them while they hold it (the simulation is busy on both cores), and the cycle then waits for
+        # milliseconds: a priority inversion. They get SCHED_FIFO just below the cycle; they never spin, and
+        # keep to the cycle's slack (wait_for_slack), so what they take from the other processes is their work.
+        helper_priority = (
+            max(params["realtime_priority"] - HELPER_PRIORITY_BELOW, 1) if params["realtime_priority"] else 0
+        )
+        self.publisher.on_start = lambda: request_realtime(helper_priority)
+        self.helper_realtime = request_realtime(helper_priority)  # this thread: the executor's
+        self.publisher.start()
+        self.loop.start()
+
+    def _publish(self, sample: CycleSample) -> None:
+        """The publisher thread: the cycle's four topics (and a stabilizer state change) as messages."""
+        stamp, slack = sample.stamp_ns, self.loop.wait_for_slack
+        driver, mapper, stabilizer = self.driver, self.mapper, self.stabilizer
+        if sample.actuator_states is not None:
+            slack(PUBLISH_SLACK_NS)
+            driver.publish_states(driver.state_codec.encode(*sample.actuator_states, stamp_ns=stamp))
+        if sample.joint_states is not None:
+            slack(PUBLISH_SLACK_NS)
+            mapper.publish_joint_states(mapper.joint_codec_out.encode(*sample.joint_states, stamp_ns=stamp))
+        if sample.joint_commands is not None:
+            slack(PUBLISH_SLACK_NS)
+            stabilizer.publish_commands(stabilizer.command_codec.encode(*sample.joint_commands, stamp_ns=stamp))
+        if sample.actuator_commands is not None:
+            slack(PUBLISH_SLACK_NS)
+            codec = mapper.actuator_codec_out
+            mapper.publish_actuator_commands(codec.encode(*sample.actuator_commands, stamp_ns=stamp))
+        if sample.stabilizer_state_changed:
+            slack(EXECUTOR_SLACK_NS)
+            stabilizer.publish_status()
+
+    def diagnostics(self) -> dict[str, object]:
+        """The cycle's timing, real-time grant, latency and publisher counts (the ``rh5/control`` values)."""
+        values = self.loop.diagnostics()
+        values["helpers.realtime"] = self.helper_realtime.describe()
+        cycle = self.cycle
+        values.update(
+            {
+                f"latency.telemetry_to_command.{k}": round(v, 1)
+                for k, v in cycle.telemetry_to_command.percentiles_us().items()
+            }
+        )
+        values.update({f"cycle.{k}": round(v, 1) for k, v in cycle.compute.percentiles_us().items()})
+        for stage, window in cycle.stages.items():
+            values.update({f"cycle.{stage}.{k}": round(v, 1) for k, v in window.percentiles_us().items()})
+        values.update(self.publisher.diagnostics())
+        return values
+
+    def _publish_status(self) -> None:
+        values = self.diagnostics()
+        if self.loop.error is not None:
+            level, message = Level.ERROR, f"control cycle died: {self.loop.error!r}"
+        elif self.loop.realtime is not None and self.loop.realtime.requested and not self.loop.realtime.granted:
+            level, message = Level.WARN, f"running without real-time scheduling: {self.loop.realtime.reason}"
+        else:
+            level, message = Level.OK, "running"
+        status = Status("rh5/control", level, message, values, hardware_id="rh5")
+        self._publish_diagnostics(diagnostics_to_msg([status], stamp_ns=self.get_clock().now().nanoseconds))
+
+    def summary(self) -> dict[str, Any]:
+        """Adds the loop timing, latency and publisher counts to the base summary."""
+        return {**super().summary(), "control": self.diagnostics()}
+
+    def destroy_node(self) -> None:
+        """Stop the cycle, then the publisher thread."""
+        self.loop.stop()
+        self.publisher.stop()
+        super().destroy_node()
+
+
+def control_process() -> list[SuiteNode]:
+    """The nodes of the control process, the control node first (it starts the cycle once the others exist)."""
+    driver = DriverNode(composed=True)
+    mapper = MapperNode(composed=True)
+    stabilizer = StabilizerNode(composed=True)
+    return [ControlNode(driver, mapper, stabilizer), driver, mapper, stabilizer]
+
+
+def main(args: list[str] | None = None) -> None:
+    """Entry point of ``ros2 run rh5_bringup control_node``."""
+    run_node(control_process, args)
