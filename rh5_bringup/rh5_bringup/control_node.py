@@ -60,7 +60,6 @@ class ControlNode(SuiteNode):
             on_realtime=lambda grant: log_realtime_grant(self.get_logger(), grant),
         )
         self.context.on_shutdown(self.loop.stop)  # SIGINT shuts the context down before the nodes are destroyed
-        self.executor_gate = lambda: self.loop.wait_for_slack(EXECUTOR_SLACK_NS)
         # The publisher and the executor share the interpreter lock with the cycle. At normal priority the OS may
         # preempt them while they hold it (the simulation is busy on both cores), and the cycle then waits for
         # milliseconds: a priority inversion. They get SCHED_FIFO just below the cycle; they never spin, and

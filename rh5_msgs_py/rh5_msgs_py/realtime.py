@@ -109,6 +109,12 @@ class LatencyWindow:
         self._ns[self._count % len(self._ns)] = ns
         self._count += 1
 
+    def add_many(self, ns: np.ndarray) -> None:
+        """Record several durations at once (the newest window's worth if more)."""
+        ns = np.asarray(ns, dtype=np.int64)[-len(self._ns) :]
+        self._ns[(self._count + np.arange(len(ns))) % len(self._ns)] = ns
+        self._count += len(ns)
+
     def percentiles_us(self) -> dict[str, float]:
         """p50, p99 and max of the window in microseconds (empty window: zeros)."""
         window = self._ns[: min(self._count, len(self._ns))]

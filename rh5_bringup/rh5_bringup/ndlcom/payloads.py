@@ -42,7 +42,6 @@ __all__ = [
     "encode_commands",
     "encode_telemetry",
     "encode_telemetry_many",
-    "is_telemetry_v1",
     "payload_type",
 ]
 
@@ -393,7 +392,6 @@ TELEMETRY_DTYPE: Final = np.dtype(
 )
 assert COMMAND_DTYPE.itemsize == COMMAND_LAYOUT.size
 assert TELEMETRY_DTYPE.itemsize == TELEMETRY_LAYOUT.size
-_TELEMETRY_SIZE: Final = TELEMETRY_LAYOUT.size
 
 _MAX_MODE: Final = max(CommandMode)
 _USED_MASK: Final = np.array([_USED_FIELDS[m] for m in CommandMode], dtype=bool)  # (mode, field)
@@ -505,17 +503,13 @@ def decode_telemetry_many(payloads: Sequence[bytes], table: ScalingTable) -> Tel
     )
 
 
-def is_telemetry_v1(data: bytes) -> bool:
-    """Whether ``data`` has the size, type and version of a TELEMETRY v1 payload (the cheap checks, per frame)."""
-    return len(data) == _TELEMETRY_SIZE and data[0] == PayloadType.TELEMETRY and data[1] == TELEMETRY_VERSION
-
-
 def decode_telemetry_of(
     payloads: Sequence[bytes], boards: np.ndarray, table: ScalingTable
 ) -> tuple[np.ndarray, TelemetryArrays]:
     """Decode TELEMETRY v1 payloads of the boards at ``boards`` (table indices, any subset) in one pass.
 
-    The payloads must pass ``is_telemetry_v1``; returns which of them also pass the mode and reserved-field
+    The payloads must have the size, type and version bytes of TELEMETRY v1 (checked per frame by the caller,
+    cheaply); returns which of them also pass the mode and reserved-field
     checks of ``decode_telemetry`` (the rest are to be dropped) and the arrays of all of them, in SI units.
     """
     rec = np.frombuffer(b"".join(payloads), dtype=TELEMETRY_DTYPE)

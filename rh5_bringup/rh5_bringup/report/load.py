@@ -137,6 +137,8 @@ class Recording:
     planned_base: list[PlannedBase] = field(default_factory=list)
     diagnostics: list[DiagnosticRecord] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    sim_speed: float | None = None
+    """Simulated seconds per wall-clock second over the recording (/clock), None without a simulation clock."""
 
 
 # --- finding the suite's topics in the bag ----------------------------------------------------------------------------
@@ -442,6 +444,7 @@ def on_simulated_time(rec: Recording, clock_t: FloatArray, clock_ns: NDArray[np.
     rate. The bag's start keeps time 0 (the simulated time is offset to the first clock message's receive time).
     """
     sim = (clock_ns - clock_ns[0]) / 1e9 + clock_t[0]
+    speed = (sim[-1] - sim[0]) / max(clock_t[-1] - clock_t[0], 1e-9)
 
     def remap(t: FloatArray) -> FloatArray:
         t = np.asarray(t, dtype=np.float64)
@@ -463,8 +466,9 @@ def on_simulated_time(rec: Recording, clock_t: FloatArray, clock_ns: NDArray[np.
         notes=[
             *rec.notes,
             f"times are simulated time (/clock, {len(clock_t)} messages): the simulation ran at "
-            f"{(sim[-1] - sim[0]) / max(clock_t[-1] - clock_t[0], 1e-9):.2f} x real time",
+            f"{speed:.2f} x real time",
         ],
+        sim_speed=float(speed),
     )
     timed = ("joint_commands", "joint_states", "actuator_commands", "actuator_states", "base_pose")
     for key in (*timed, "wrench_left", "wrench_right", "estopped"):

@@ -118,10 +118,28 @@ def _fault_verdict(a: Analysis) -> str:
     return f"**Faults**: {len(a.faults)} distinct (first: {first})"
 
 
+def _loop_verdict(a: Analysis) -> str:
+    """The 1 kHz loops in one line: rate, jitter, misses, latency and scheduling; and the simulation's speed."""
+    parts = [
+        f"{x.node} {x.rate_hz:.2f} Hz, jitter p99 {x.jitter_p99_us:.0f} us (max {x.jitter_max_us:.0f}), "
+        f"{x.deadline_misses} misses"
+        + ("" if np.isnan(x.latency_p99_us) else f", telemetry -> command p99 {x.latency_p99_us:.0f} us")
+        + (f", {x.scheduling}" if x.scheduling else "")
+        for x in a.loops
+    ]
+    speed = a.recording.sim_speed
+    sim = "" if speed is None else f"; simulation {speed:.2f} x real time"
+    return "**Loops**: " + ("; ".join(parts) or NOT_RECORDED) + sim
+
+
+def _verdicts(a: Analysis) -> list[str]:
+    """The verdict lines in markdown: base band, fall, tracking, faults, loops."""
+    return [_base_verdict(a), _fall_verdict(a), _tracking_verdict(a), _fault_verdict(a), _loop_verdict(a)]
+
+
 def verdict_lines(analysis: Analysis) -> list[str]:
-    """The four verdict lines (base band, fall, tracking, faults) as plain text, e.g. for a terminal."""
-    lines = [_base_verdict(analysis), _fall_verdict(analysis), _tracking_verdict(analysis), _fault_verdict(analysis)]
-    return [line.replace("**", "") for line in lines]
+    """The verdict lines as plain text, e.g. for a terminal."""
+    return [line.replace("**", "") for line in _verdicts(analysis)]
 
 
 # --- sections ----------------------------------------------------------------------------------------------------
@@ -220,11 +238,28 @@ def _timing_section(a: Analysis) -> list[str]:
     lines = ["## Loop timing", ""]
     if a.loops:
         lines += table(
-            ["node", "reports", "rate [Hz]", "jitter p99 [us] (worst)", "jitter max [us]", "deadline misses"],
-            [[x.node, x.reports, x.rate_hz, x.jitter_p99_us, x.jitter_max_us, x.deadline_misses] for x in a.loops],
-        )
+            [
+                "node", "reports", "rate [Hz]", "jitter p99 [us] (worst)", "jitter max [us]", "deadline misses",
+                "cycle p99 [us]", "telemetry -> command p99 [us]", "scheduling",
+            ],
+            [
+                [
+                    x.node, x.reports, x.rate_hz, x.jitter_p99_us, x.jitter_max_us, x.deadline_misses,
+                    x.cycle_p99_us, x.latency_p99_us, x.scheduling or "-",
+                ]
+                for x in a.loops
+            ],
+        )  # fmt: skip
+        lines += [
+            "",
+            "Telemetry -> command: from the read that took the boards' telemetry to the command frames computed "
+            "from it, in the same cycle. Scheduling: SCHED_FIFO when the OS granted real-time priority (README, "
+            "'Real-time').",
+        ]
     else:
         lines.append(f"Loop diagnostics {NOT_RECORDED}.")
+    if a.recording.sim_speed is not None:
+        lines += ["", f"Simulation speed: {a.recording.sim_speed:.3f} x real time (simulated s per wall-clock s)."]
     lines += ["", "Recorded streams (gaps include messages the best-effort recording dropped):", ""]
     lines += table(
         ["topic", "messages", "rate [Hz]", "period p50 [ms]", "period p99 [ms]", "max gap [ms]", "times from"],
@@ -270,7 +305,10 @@ def render(analysis: Analysis, figures: Mapping[str, str]) -> str:
         "",
         "## Verdict",
         "",
-        *[f"- {v}" for v in (_base_verdict(a), _fall_verdict(a), _tracking_verdict(a), _fault_verdict(a))],
+        *[
+            f"- {v}"
+            for v in (_base_verdict(a), _fall_verdict(a), _tracking_verdict(a), _fault_verdict(a), _loop_verdict(a))
+        ],
         "",
         "## Trajectory time",
         "",

@@ -304,6 +304,12 @@ class LoopTiming:
     jitter_p99_us: float
     jitter_max_us: float
     deadline_misses: int
+    scheduling: str = ""
+    """What the OS granted the loop thread (e.g. 'SCHED_FIFO 50, memory locked'), as last reported."""
+    latency_p99_us: float = np.nan
+    """Telemetry-to-command latency (the control cycle: read to write), worst p99 over the reports."""
+    cycle_p99_us: float = np.nan
+    """Duration of the cycle's work, worst p99 over the reports."""
 
 
 def _float(values: Mapping[str, str], key: str) -> float:
@@ -326,6 +332,8 @@ def loop_timing(diagnostics: Iterable[DiagnosticRecord]) -> list[LoopTiming]:
         p99 = np.array([_float(r.values, "loop.jitter_p99_us") for r in reports])
         peak = np.array([_float(r.values, "loop.jitter_max_us") for r in reports])
         misses = _float(reports[-1].values, "loop.deadline_misses")
+        latency = np.array([_float(r.values, "latency.telemetry_to_command.p99_us") for r in reports])
+        cycle = np.array([_float(r.values, "cycle.p99_us") for r in reports])
         out.append(
             LoopTiming(
                 node,
@@ -334,9 +342,18 @@ def loop_timing(diagnostics: Iterable[DiagnosticRecord]) -> list[LoopTiming]:
                 float(np.nanmax(p99)) if np.isfinite(p99).any() else np.nan,
                 float(np.nanmax(peak)) if np.isfinite(peak).any() else np.nan,
                 int(misses) if np.isfinite(misses) else -1,
+                str(reports[-1].values.get("loop.realtime", "")),
+                _worst(latency[latency > 0]),
+                _worst(cycle[cycle > 0]),
             )
         )
     return out
+
+
+def _worst(values: FloatArray) -> float:
+    """The largest finite value (NaN when there is none)."""
+    finite = values[np.isfinite(values)]
+    return float(finite.max()) if len(finite) else np.nan
 
 
 @dataclass(frozen=True)
