@@ -1,0 +1,151 @@
+"""The control process as a real process against the sim_hardware node: real-time granted or refused.
+
+As root (this machine) the cycle gets SCHED_FIFO; run with CAP_SYS_NICE dropped and an rtprio limit of 0
+(``setpriv``, ``prlimit``: as on a robot PC nobody configured), the OS refuses, and the process must say so
+once, naming the fix, and still run its 1 kHz cycle and publish its topics.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import subprocess
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from rh5_bringup.launcher import (
+    Bringup,
+    NodeSpec,
+    SuiteRun,
+    composed_command,
+    composed_parameters,
+    load_bringup,
+    wait_for_nodes,
+)
+from rh5_msgs_py import interfaces
+from rh5_msgs_py.conversions import diagnostics_from_msg
+
+pytestmark = pytest.mark.ros
+
+NO_RTPRIO = ["setpriv", "--inh-caps=-sys_nice", "--bounding-set=-sys_nice", "--", "prlimit", "--rtprio=0", "--"]
+WATCH_S = 4.0
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def boards(ros_graph: Any, ros_test_environment: dict[str, str]) -> Iterator[int]:
+    """The sim_hardware node (kinematic) on a free UDP port."""
+    port = _free_udp_port()
+    spec = NodeSpec("sim_hardware", "rh5_bringup", "sim_hardware_node", {"listen_port": port})
+    log_dir = Path(ros_test_environment["ROS_LOG_DIR"]) / "control_boards"
+    with SuiteRun(Bringup("", (spec,)), log_dir, int(ros_test_environment["ROS_DOMAIN_ID"])):
+        assert wait_for_nodes(ros_graph, {"sim_hardware"}) == set()
+        yield port
+
+
+def _run_control(
+    ros_graph: Any, env: dict[str, str], port: int, log_dir: Path, prefix: list[str]
+) -> tuple[list[Any], dict[str, int], str, int]:
+    """Start the control process (``prefix`` before its command), watch it for WATCH_S, stop it with SIGINT.
+
+    Returns the rh5/control statuses seen, messages per 1 kHz topic, its stderr and its exit code.
+    """
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from sensor_msgs.msg import JointState
+
+    bringup = load_bringup().with_parameters("driver", router_port=port, board_silence_timeout_s=0.5)
+    ((host, hosted),) = [(h, n) for h, n in bringup.processes() if n]
+    log_dir.mkdir(parents=True, exist_ok=True)
+    params = log_dir / "control.params.yaml"
+    import yaml
+
+    params.write_text(yaml.safe_dump(composed_parameters((host, *hosted))), encoding="utf-8")
+    statuses: list[Any] = []
+    counts = {interfaces.ACTUATOR_STATES.name: 0, interfaces.JOINT_STATES.name: 0}
+
+    def count(topic: str) -> Any:
+        def on_message(_msg: Any) -> None:
+            counts[topic] += 1
+
+        return on_message
+
+    subscriptions = [
+        ros_graph.create_subscription(
+            DiagnosticArray,
+            interfaces.DIAGNOSTICS.name,
+            lambda m: statuses.extend(s for s in diagnostics_from_msg(m) if s.name == "rh5/control"),
+            interfaces.EVENT_QOS,
+        ),
+        *(
+            ros_graph.create_subscription(JointState, topic, count(topic), interfaces.STREAM_QOS)
+            for topic in list(counts)
+        ),
+    ]
+    stderr_path = log_dir / "control.err"
+    with stderr_path.open("wb") as stderr:
+        process = subprocess.Popen(
+            [*prefix, *composed_command(host, hosted, params)],
+            stdout=subprocess.DEVNULL,
+            stderr=stderr,
+            env=env,
+            start_new_session=True,
+        )
+    try:
+        assert wait_for_nodes(ros_graph, {"control", "driver", "mapper", "stabilizer"}) == set()
+        end = time.monotonic() + WATCH_S
+        while time.monotonic() < end:
+            rclpy.spin_once(ros_graph, timeout_sec=0.05)
+    finally:
+        process.send_signal(2)
+        code = process.wait(timeout=15)
+        for subscription in subscriptions:
+            ros_graph.destroy_subscription(subscription)
+    return statuses, counts, stderr_path.read_text(encoding="utf-8", errors="replace"), code
+
+
+def test_the_cycle_runs_under_sched_fifo_when_granted(
+    boards: int, ros_graph: Any, ros_test_environment: dict[str, str]
+) -> None:
+    if os.geteuid() != 0:
+        pytest.skip("granting SCHED_FIFO needs root or an rtprio limit here")
+    log_dir = Path(ros_test_environment["ROS_LOG_DIR"]) / "control_granted"
+    statuses, counts, stderr, code = _run_control(ros_graph, dict(os.environ), boards, log_dir, [])
+    assert code == 0, stderr[-2000:]
+    last = statuses[-1].values
+    assert last["loop.realtime"] == "SCHED_FIFO 50, memory locked"
+    assert last["loop.realtime_granted"] == "True"
+    assert "refused" not in stderr
+    assert float(last["loop.rate_hz"]) > 900.0
+    # the cycle's topics reach another process (best effort, and this process spins while it counts)
+    assert min(counts.values()) > 0.3 * 1000 * WATCH_S, counts
+
+
+def test_a_refused_real_time_request_warns_once_with_the_fix_and_still_runs(
+    boards: int, ros_graph: Any, ros_test_environment: dict[str, str]
+) -> None:
+    if shutil.which("setpriv") is None or shutil.which("prlimit") is None:
+        pytest.skip("setpriv and prlimit (util-linux) are needed to take real-time rights away")
+    log_dir = Path(ros_test_environment["ROS_LOG_DIR"]) / "control_refused"
+    statuses, counts, stderr, code = _run_control(ros_graph, dict(os.environ), boards, log_dir, NO_RTPRIO)
+    assert code == 0, stderr[-2000:]
+    warnings = [line for line in stderr.splitlines() if "real-time scheduling refused" in line]
+    assert len(warnings) == 1, stderr[-2000:]
+    assert "rtprio" in warnings[0]
+    assert "limits.conf" in warnings[0]  # names the fix
+    last = statuses[-1]
+    assert last.values["loop.realtime_granted"] == "False"
+    assert "refused" in last.values["loop.realtime"]
+    assert last.level == 1  # WARN: running without real-time scheduling
+    assert float(last.values["loop.rate_hz"]) > 500.0  # still runs its cycle
+    assert min(counts.values()) > 0.05 * 1000 * WATCH_S, counts  # and publishes (at normal priority: fewer)
