@@ -14,6 +14,7 @@ NODE_SPECS = (
     ("planner", "rh5_planner", "planner_node"),
     ("mapper", "rh5_hyrodyn_mapper", "mapper_node"),
     ("stabilizer", "rh5_joint_stabilizer", "stabilizer_node"),
+    ("control", "rh5_bringup", "control_node"),
     ("driver", "rh5_bringup", "driver_node"),
     ("sim_hardware", "rh5_bringup", "sim_hardware_node"),
     ("recorder", "rh5_bringup", "recorder_node"),

@@ -7,7 +7,10 @@ Per period, in order:
 4. map joint -> actuator space with the limits (``MapperCore.to_actuator_command``: clamps and refusals);
 5. write: one command frame per board (``DriverCore.write``: estop, safe hold, enable, staleness, limits).
 
-Nothing here waits on ROS: the cycle hands what the topics need to a ``RealtimePublisher`` and goes on.
+A step whose input did not change since the last cycle (no new telemetry; the same command) reuses its
+last result instead of mapping again: on the robot every cycle brings new telemetry, in a simulation
+slower than real time most do not. Nothing here waits on ROS: the cycle hands what the topics need to a
+``RealtimePublisher`` and goes on.
 The safety rules stay where they live, in the driver's, mapper's and stabilizer's cores.
 """
 
@@ -22,6 +25,7 @@ import numpy as np
 from rh5_bringup.driver import ActuatorCommand, DriverCore
 from rh5_bringup.ndlcom.payloads import CommandMode
 from rh5_hyrodyn_mapper.mapper_core import MapperCore
+from rh5_hyrodyn_mapper.mapping import JointSample
 from rh5_joint_stabilizer.controller import Command, Measurement
 from rh5_msgs_py.realtime import LatencyWindow
 
@@ -40,6 +44,13 @@ class CycleSample(NamedTuple):
     joint_commands: Triple | None
     actuator_commands: Triple | None
     stabilizer_state_changed: bool
+
+
+def _same(a: Triple, b: Triple | None) -> bool:
+    """Whether two (position, velocity, effort) triples hold equal values (NaN never equals: always recomputed)."""
+    return b is not None and all(
+        x is y or (x is not None and y is not None and np.array_equal(x, y)) for x, y in zip(a, b, strict=True)
+    )
 
 
 class ControlCycle:
@@ -68,7 +79,20 @@ class ControlCycle:
         self.stages = {name: LatencyWindow() for name in STAGES}
         """Duration of each step of the cycle (ns), to see where a long cycle spent its time."""
         self.measurement: Measurement | None = None
-        self.last_command: ActuatorCommand | None = None
+        self._actuator_states: Triple | None = None
+        self._joints: JointSample | None = None
+        self._mapped_command: Triple | None = None
+        self._actuator_command: ActuatorCommand | None = None
+
+    def _to_actuators(self, joint_command: Triple) -> ActuatorCommand | None:
+        """The actuator setpoints of a joint command within the limits (None: refused by the mapper)."""
+        actuators = self.mapper.to_actuator_command(*joint_command)
+        if actuators is None:
+            return None
+        n = len(actuators.position)
+        velocity = actuators.velocity if actuators.velocity is not None else np.zeros(n)
+        effort = actuators.effort if actuators.effort is not None else np.zeros(n)
+        return ActuatorCommand(actuators.position, velocity, effort)
 
     def step(self, now_ns: int, period_ns: int) -> None:
         """Run one cycle: read, map, stabilise, map, write; then hand the cycle's data to the publisher."""
@@ -80,8 +104,10 @@ class ControlCycle:
         actuator_states = joint_states = joint_commands = actuator_commands = None
         self.measurement = None
         if driver.all_heard:  # before every board has answered, part of the readings would be made-up zeros
-            actuator_states = (readings.position.copy(), readings.velocity.copy(), readings.effort.copy())
-            joints = self.mapper.to_joint_state(*actuator_states)
+            if driver.frames_read or self._joints is None:  # unchanged readings map to the same joint state
+                self._actuator_states = (readings.position.copy(), readings.velocity.copy(), readings.effort.copy())
+                self._joints = self.mapper.to_joint_state(*self._actuator_states)
+            actuator_states, joints = self._actuator_states, self._joints
             if joints is not None:
                 joint_states = (joints.position, joints.velocity, joints.effort)
                 velocity = joints.velocity if joints.velocity is not None else np.zeros_like(joints.position)
@@ -94,14 +120,12 @@ class ControlCycle:
         stages["stabilize"].add(t_stabilize - t_map)
         if command is not None:
             joint_commands = (command.position, command.velocity, command.effort)
-            actuators = self.mapper.to_actuator_command(*joint_commands)
-            if actuators is not None:
-                n = len(actuators.position)
-                velocity = actuators.velocity if actuators.velocity is not None else np.zeros(n)
-                effort = actuators.effort if actuators.effort is not None else np.zeros(n)
-                self.last_command = ActuatorCommand(actuators.position, velocity, effort)
-                driver.command.set(self.last_command, now_ns)
-                actuator_commands = (actuators.position, velocity, effort)
+            if not _same(joint_commands, self._mapped_command):  # an unchanged command maps to the same setpoints
+                self._mapped_command = joint_commands
+                self._actuator_command = self._to_actuators(joint_commands)
+            if self._actuator_command is not None:
+                driver.command.set(self._actuator_command, now_ns)
+                actuator_commands = tuple(self._actuator_command)
         t_map = clock()
         stages["to_actuators"].add(t_map - t_stabilize)
         sent_ns = driver.write(now_ns, period_ns)

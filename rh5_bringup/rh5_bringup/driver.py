@@ -30,7 +30,7 @@ from rh5_bringup.ndlcom.payloads import (
     PayloadType,
     TelemetryArrays,
     decode_telemetry_of,
-    encode_commands,
+    encode_command_block,
 )
 from rh5_bringup.transports.base import Transport
 from rh5_msgs_py.realtime import LatencyWindow, LatestValue
@@ -90,6 +90,7 @@ class DriverCore:
         self._table = board_map.scaling_table()
         self._encoder = FrameEncoder(board_map.pc_address)
         self._addresses = board_map.addresses()
+        self._address_array = np.array(self._addresses, dtype=np.intp)
         self._index_of = {board.address: board.index for board in board_map}
         n = len(board_map)
         self.command: LatestValue[ActuatorCommand] = LatestValue()
@@ -216,11 +217,11 @@ class DriverCore:
         n = len(self._addresses)
         if command is None:
             zeros = np.zeros(n)
-            payloads = encode_commands(
+            payloads = encode_command_block(
                 np.full(n, int(mode)), zeros, zeros, zeros, sequence=self.sequence, table=self._table
             )
         else:
-            payloads = encode_commands(
+            payloads = encode_command_block(
                 np.full(n, int(mode)),
                 command.position,
                 command.velocity,
@@ -228,7 +229,7 @@ class DriverCore:
                 sequence=self.sequence,
                 table=self._table,
             )
-        self.transport.send_frames(self._encoder.encode_many(self._addresses, payloads))
+        self.transport.send_frames(self._encoder.encode_block(self._address_array, payloads))
         sent_ns = time.monotonic_ns()
         self._sent_ns[self.sequence % len(self._sent_ns)] = now_ns
         self.counts["cycles"] += 1

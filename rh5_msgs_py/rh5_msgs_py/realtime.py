@@ -38,7 +38,7 @@ GIL_SWITCH_INTERVAL_S = 5e-5  # CPython's default 5 ms would let an executor thr
 STATS_WINDOW = 1000  # cycles kept for the jitter percentiles (1 s at 1 kHz)
 MCL_CURRENT, MCL_FUTURE = 1, 2  # mlockall flags (Linux <sys/mman.h>)
 RTPRIO_FIX = (
-    "grant real-time scheduling: on a robot PC add '@realtime - rtprio 98' and '@realtime - memlock unlimited' to "
+    "grant real-time scheduling: on a robot PC add '@realtime - rtprio 99' and '@realtime - memlock unlimited' to "
     "/etc/security/limits.conf, add the user to the group 'realtime' and log in again (README, 'Real-time'); "
     "or run with CAP_SYS_NICE (e.g. as root)"
 )

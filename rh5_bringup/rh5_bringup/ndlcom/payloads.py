@@ -39,6 +39,7 @@ __all__ = [
     "decode_telemetry_many",
     "decode_telemetry_of",
     "encode_command",
+    "encode_command_block",
     "encode_commands",
     "encode_telemetry",
     "encode_telemetry_many",
@@ -423,6 +424,21 @@ def encode_commands(
 ) -> list[bytes]:
     """COMMAND v1 payloads for n boards at once (one per board, in table order); the same checks and bytes as
     ``encode_command``, raising ``PayloadError`` naming the first offending board."""
+    block = encode_command_block(modes, setpoint, velocity_ff, effort_ff, sequence=sequence, table=table)
+    blob, size = block.tobytes(), COMMAND_LAYOUT.size
+    return [blob[i : i + size] for i in range(0, len(block) * size, size)]
+
+
+def encode_command_block(
+    modes: Sequence[int] | np.ndarray,
+    setpoint: Sequence[float] | np.ndarray,
+    velocity_ff: Sequence[float] | np.ndarray,
+    effort_ff: Sequence[float] | np.ndarray,
+    *,
+    sequence: int,
+    table: ScalingTable,
+) -> np.ndarray:
+    """``encode_commands`` as one (n, payload size) uint8 array, a row per board (for ``FrameEncoder.encode_block``)."""
     n = len(table)
     mode_array = np.asarray(modes)
     if (
@@ -454,8 +470,7 @@ def encode_commands(
     out["type"], out["version"] = PayloadType.COMMAND, COMMAND_VERSION
     out["mode"], out["sequence"] = mode_array, sequence
     out["setpoint"], out["velocity_ff"], out["effort_ff"] = raw
-    blob, size = out.tobytes(), COMMAND_LAYOUT.size
-    return [blob[i : i + size] for i in range(0, n * size, size)]
+    return out.view(np.uint8).reshape(n, COMMAND_LAYOUT.size)
 
 
 class TelemetryArrays(NamedTuple):
