@@ -12,6 +12,7 @@ from rh5_bringup.cli import call_trigger
 from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, load_bringup, wait_for_nodes
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.names import JOINT_NAMES
+from rh5_msgs_py.node_runtime import parse_summaries
 from rh5_msgs_py.parameters import load_spec
 
 pytestmark = pytest.mark.ros
@@ -21,6 +22,7 @@ SPEC_OF_NODE = {
     "mapper": ("rh5_hyrodyn_mapper", "params/mapper.yaml"),
     "stabilizer": ("rh5_joint_stabilizer", "params/stabilizer.yaml"),
     "driver": ("rh5_bringup", "params/driver.yaml"),
+    "control": ("rh5_bringup", "params/control.yaml"),
     "sim_hardware": ("rh5_bringup", "params/sim_hardware.yaml"),
     "recorder": ("rh5_bringup", "params/recorder.yaml"),
 }
@@ -44,7 +46,8 @@ def _call(node: Any, client: Any, request: Any, timeout_s: float = 10.0) -> Any:
 
 @pytest.fixture(scope="module")
 def suite(ros_graph: Any, ros_test_environment: dict[str, str]) -> Any:
-    """The whole bringup running for a few seconds, then stopped with SIGINT; yields what was observed."""
+    """The whole bringup running for a few seconds, then stopped with SIGINT; yields what was observed, per node
+(the control process hosts the driver, mapper and stabilizer nodes: their exit code is the process's)."""
     import rclpy
     from rcl_interfaces.srv import DescribeParameters, ListParameters
     from std_msgs.msg import String
@@ -58,7 +61,7 @@ def suite(ros_graph: Any, ros_test_environment: dict[str, str]) -> Any:
     run = SuiteRun(bringup, _log_dir(ros_test_environment, "suite"), int(ros_test_environment["ROS_DOMAIN_ID"]))
     observed: dict[str, Any] = {"parameters": {}, "descriptors": {}}
     with run:
-        observed["missing"] = wait_for_nodes(ros_graph, {n.name for n in bringup.nodes})
+        observed["missing"] = wait_for_nodes(ros_graph, bringup.node_names())
         for name, spec_source in SPEC_OF_NODE.items():
             listed = _call(
                 ros_graph,
@@ -78,9 +81,9 @@ def suite(ros_graph: Any, ros_test_environment: dict[str, str]) -> Any:
         while time.monotonic() < end:
             rclpy.spin_once(ros_graph, timeout_sec=0.05)
         observed["crashed"] = [p.spec.name for p in run.exited()]
-    observed["exit_codes"] = {p.spec.name: p.process.returncode for p in run.processes}
-    observed["summaries"] = {p.spec.name: p.summary() for p in run.processes}
-    observed["stderr"] = {p.spec.name: p.stderr_path.read_text() for p in run.processes}
+    observed["exit_codes"] = {name: p.process.returncode for p in run.processes for name in p.names}
+    observed["summaries"] = {s["node"]: s for p in run.processes for s in parse_summaries(p.output())}
+    observed["stderr"] = {name: p.stderr_path.read_text() for p in run.processes for name in p.names}
     observed["descriptions"] = descriptions
     return observed
 
@@ -108,13 +111,15 @@ def test_node_exits_cleanly_on_sigint_with_a_summary(suite: Any, name: str) -> N
 
 
 def test_the_nodes_talk_to_each_other(suite: Any) -> None:
-    """planner -> stabilizer -> mapper -> driver -> mapper: each saw its input; the recorder saw them all."""
+    """planner -> stabilizer; the control cycle publishes every stream of the loop; the recorder saw them all."""
     assert suite["start"][0], suite["start"][1]
     seen = {name: s["seen"] for name, s in suite["summaries"].items()}
+    sent = {name: s["sent"] for name, s in suite["summaries"].items()}
     assert seen["stabilizer"].get("planned_trajectory", 0) >= 1
-    assert seen["mapper"].get("joint_commands", 0) >= 10
-    assert seen["driver"].get("actuator_commands", 0) >= 10
-    assert seen["mapper"].get("actuator_states", 0) >= 10
+    assert sent["stabilizer"].get("joint_commands", 0) >= 10
+    assert sent["mapper"].get("actuator_commands", 0) >= 10
+    assert sent["driver"].get("actuator_states", 0) >= 10
+    assert sent["mapper"].get("joint_states", 0) >= 10
     for topic in ("planned_trajectory", "joint_commands", "actuator_commands", "actuator_states", "joint_states"):
         assert seen["recorder"].get(topic, 0) >= 1, topic
 

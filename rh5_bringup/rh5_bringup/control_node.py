@@ -30,8 +30,8 @@ PUBLISH_SLACK_NS: Final = 150_000
 """Time one message takes to build and publish, with margin: the publisher starts one only with this much slack."""
 HELPER_PRIORITY_BELOW: Final = 10
 """The publisher and executor threads run this far below the cycle's SCHED_FIFO priority."""
-EXECUTOR_SLACK_NS: Final = 300_000
-"""The same for a wait-set rebuild or a callback of the executor (diagnostics, services, /clock)."""
+STATUS_SLACK_NS: Final = 300_000
+"""The same for the stabilizer's status message (a few hundred key-values)."""
 
 
 class ControlNode(SuiteNode):
@@ -63,7 +63,7 @@ class ControlNode(SuiteNode):
         # The publisher and the executor share the interpreter lock with the cycle. At normal priority the OS may
         # preempt them while they hold it (the simulation is busy on both cores), and the cycle then waits for
         # milliseconds: a priority inversion. They get SCHED_FIFO just below the cycle; they never spin, and
-        # keep to the cycle's slack (wait_for_slack), so what they take from the other processes is their work.
+        # take from the other processes only the work they have (the publisher keeps to the cycle's slack).
         helper_priority = (
             max(params["realtime_priority"] - HELPER_PRIORITY_BELOW, 1) if params["realtime_priority"] else 0
         )
@@ -90,7 +90,7 @@ class ControlNode(SuiteNode):
             codec = mapper.actuator_codec_out
             mapper.publish_actuator_commands(codec.encode(*sample.actuator_commands, stamp_ns=stamp))
         if sample.stabilizer_state_changed:
-            slack(EXECUTOR_SLACK_NS)
+            slack(STATUS_SLACK_NS)
             stabilizer.publish_status()
 
     def diagnostics(self) -> dict[str, object]:

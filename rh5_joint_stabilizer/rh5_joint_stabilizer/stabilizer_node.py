@@ -82,6 +82,7 @@ class StabilizerNode(SuiteNode):
             correction=self.balance,
         )
         self.measurement: LatestValue[Measurement] = LatestValue()
+        self._composed = composed
         self._reported_state = self.core.state
         self.state_changed = False
         self._ros_playback = params["playback_clock"] == "ros"
@@ -209,6 +210,8 @@ class StabilizerNode(SuiteNode):
         ``state_changed`` then says whether the state moved, which is published at once (recordings then know
         when playback started to the millisecond).
         """
+        if self._composed and measurement is not None:
+            self.measurement.set(measurement, measurement.stamp_ns)  # what ~/start ramps in from
         playback_ns = self.get_clock().now().nanoseconds if self._ros_playback else None
         command = self.core.update(now_ns, period_ns, measurement, playback_ns)
         self.state_changed = self.core.state is not self._reported_state

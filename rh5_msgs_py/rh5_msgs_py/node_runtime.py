@@ -28,7 +28,6 @@ from rh5_msgs_py.streams import StreamThread
 
 SUMMARY_PREFIX = "RH5_SUMMARY "
 EXIT_BAD_START = 2
-EXECUTOR_WAIT_S = 0.1
 
 
 class SuiteNode(Node):
@@ -41,9 +40,6 @@ class SuiteNode(Node):
         self.seen: Counter[str] = Counter()
         self.sent: Counter[str] = Counter()
         self._streams: StreamThread | None = None
-        self.executor_gate: Callable[[], object] | None = None
-        """Called by ``run_node`` before the executor waits and before each callback it runs: a real-time loop
-        of the process sets it to keep the executor's work in the loop's slack."""
 
     @property
     def params(self) -> dict[str, Any]:
@@ -136,11 +132,7 @@ def run_node(factory: Callable[[], SuiteNode | Sequence[SuiteNode]], args: list[
         executor = rclpy.get_global_executor()
         for node in nodes:
             executor.add_node(node)
-        gate = nodes[0].executor_gate
-        if gate is None:
-            executor.spin()
-        else:
-            _spin_gated(executor, gate)
+        executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         stopped = True
     except Exception as err:
@@ -162,25 +154,6 @@ def run_node(factory: Callable[[], SuiteNode | Sequence[SuiteNode]], args: list[
             summary = {"node": None, "seen": {}, "sent": {}, "stopped": "during start-up"}
             print(SUMMARY_PREFIX + json.dumps(summary, sort_keys=True), flush=True)
         rclpy.try_shutdown()
-
-
-def _spin_gated(executor: Any, gate: Callable[[], object]) -> None:
-    """``executor.spin()`` with ``gate`` called before every wait and every callback (rclpy's own spin_once,
-    split where the gate goes, through the executor's public ``wait_for_ready_callbacks``)."""
-    from rclpy.executors import ShutdownException, TimeoutException  # noqa: PLC0415
-
-    while executor.context.ok():
-        gate()
-        try:
-            handler, _, _ = executor.wait_for_ready_callbacks(timeout_sec=EXECUTOR_WAIT_S)
-        except TimeoutException:
-            continue
-        except ShutdownException:
-            return
-        gate()
-        handler()
-        if handler.exception() is not None:
-            raise handler.exception()
 
 
 def parse_summaries(output: str) -> list[dict[str, Any]]:
