@@ -47,7 +47,7 @@ def _call(node: Any, client: Any, request: Any, timeout_s: float = 10.0) -> Any:
 @pytest.fixture(scope="module")
 def suite(ros_graph: Any, ros_test_environment: dict[str, str]) -> Any:
     """The whole bringup running for a few seconds, then stopped with SIGINT; yields what was observed, per node
-(the control process hosts the driver, mapper and stabilizer nodes: their exit code is the process's)."""
+    (the control process hosts the driver, mapper and stabilizer nodes: their exit code is the process's)."""
     import rclpy
     from rcl_interfaces.srv import DescribeParameters, ListParameters
     from std_msgs.msg import String

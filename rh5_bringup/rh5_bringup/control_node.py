@@ -73,22 +73,24 @@ class ControlNode(SuiteNode):
         self.loop.start()
 
     def _publish(self, sample: CycleSample) -> None:
-        """The publisher thread: the cycle's four topics (and a stabilizer state change) as messages."""
+        """The publisher thread: the cycle's four topics (serialised directly: ``encode_serialized``) and a
+        stabilizer state change, each message started only in the cycle's slack."""
         stamp, slack = sample.stamp_ns, self.loop.wait_for_slack
         driver, mapper, stabilizer = self.driver, self.mapper, self.stabilizer
         if sample.actuator_states is not None:
             slack(PUBLISH_SLACK_NS)
-            driver.publish_states(driver.state_codec.encode(*sample.actuator_states, stamp_ns=stamp))
+            driver.publish_states(driver.state_codec.encode_serialized(*sample.actuator_states, stamp_ns=stamp))
         if sample.joint_states is not None:
             slack(PUBLISH_SLACK_NS)
-            mapper.publish_joint_states(mapper.joint_codec_out.encode(*sample.joint_states, stamp_ns=stamp))
+            mapper.publish_joint_states(mapper.joint_codec_out.encode_serialized(*sample.joint_states, stamp_ns=stamp))
         if sample.joint_commands is not None:
             slack(PUBLISH_SLACK_NS)
-            stabilizer.publish_commands(stabilizer.command_codec.encode(*sample.joint_commands, stamp_ns=stamp))
+            codec = stabilizer.command_codec
+            stabilizer.publish_commands(codec.encode_serialized(*sample.joint_commands, stamp_ns=stamp))
         if sample.actuator_commands is not None:
             slack(PUBLISH_SLACK_NS)
             codec = mapper.actuator_codec_out
-            mapper.publish_actuator_commands(codec.encode(*sample.actuator_commands, stamp_ns=stamp))
+            mapper.publish_actuator_commands(codec.encode_serialized(*sample.actuator_commands, stamp_ns=stamp))
         if sample.stabilizer_state_changed:
             slack(STATUS_SLACK_NS)
             stabilizer.publish_status()

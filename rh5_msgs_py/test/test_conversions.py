@@ -504,3 +504,25 @@ def test_invalid_levels_raise() -> None:
     msg = DiagnosticStatus(name="driver", level=b"\x07")
     with pytest.raises(ValueError, match="'driver': level 7"):
         status_from_msg(msg)
+
+
+@pytest.mark.parametrize(
+    "present", [(True, True, True), (True, False, True), (True, True, False), (True, False, False)]
+)
+def test_serialized_joint_state_is_the_message_rclpy_would_send(present: tuple[bool, bool, bool]) -> None:
+    """encode_serialized writes stamp and arrays into rclpy's own serialisation of a template: deserialised,
+    it is the message encode builds (padding bytes aside, which CDR leaves unspecified)."""
+    from rclpy.serialization import deserialize_message
+
+    codec = JointStateCodec(JOINT_NAMES, frame_id="base")
+    rng = np.random.default_rng(7)
+    for stamp in (0, 1_700_000_000_123_456_789, 5):
+        fields = [rng.normal(size=len(JOINT_NAMES)) if on else None for on in present]
+        received = deserialize_message(codec.encode_serialized(*fields, stamp_ns=stamp), JointState)
+        expected = codec.encode(*fields, stamp_ns=stamp)
+        assert received.header == expected.header
+        assert list(received.name) == list(expected.name)
+        for field in ("position", "velocity", "effort"):
+            assert list(getattr(received, field)) == list(getattr(expected, field)), field
+    with pytest.raises(ValueError, match="shape"):
+        codec.encode_serialized(np.zeros(3))
