@@ -191,6 +191,7 @@ class SimHardwareNode(SuiteNode):
             "mode": self.params["mode"],
             "boards_emulated": len(self.emulator.board_map),
             "counts": dict(self.emulator.counts),
+            "superseded_datagrams": self.emulator.transport.stats().superseded_chunks,
             "loop": self.server.stats().as_dict(),
         }
         if self.physics is not None:

@@ -249,3 +249,44 @@ def test_importing_the_factory_does_not_import_python_can() -> None:
     code = "import sys, rh5_bringup.transports; assert 'can' not in sys.modules; print('lazy')"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=False)
     assert result.stdout.strip() == "lazy", result.stderr
+
+
+def test_recv_newest_decodes_only_the_newest_burst_and_counts_no_loss() -> None:
+    """A receiver behind its peer: of five waiting one-datagram bursts only the last is decoded; the skipped
+    four are counted as superseded, and their frame-counter gap is not reported as lost frames."""
+    receiver = UdpTransport(("127.0.0.1", 0))
+    sender = UdpTransport(("127.0.0.1", 0), remote=receiver.local_address)
+    encoder = FrameEncoder(0x01)
+    try:
+        for burst in range(5):
+            sender.send_frames([encoder.encode(board, bytes([burst, board])) for board in (0x10, 0x11, 0x12)])
+        time.sleep(0.05)
+        frames = receiver.recv_newest(timeout=1.0)
+        assert [f.payload for f in frames] == [bytes([4, board]) for board in (0x10, 0x11, 0x12)]
+        stats = receiver.stats()
+        assert stats.superseded_chunks == 4
+        assert stats.decoder.total().lost == 0
+        sender.send_frames([encoder.encode(0x10, b"\x05")])  # the next frame continues the counter: no loss
+        assert [f.payload for f in receiver.recv_newest(timeout=1.0)] == [b"\x05"]
+        assert receiver.stats().decoder.total().lost == 0
+    finally:
+        sender.shutdown()
+        receiver.shutdown()
+
+
+def test_recv_newest_keeps_a_burst_split_over_datagrams() -> None:
+    """A burst that did not fit one datagram (different first frames) is kept whole; the older burst goes."""
+    receiver = UdpTransport(("127.0.0.1", 0))
+    sender = UdpTransport(("127.0.0.1", 0), remote=receiver.local_address)
+    encoder = FrameEncoder(0x01)
+    try:
+        for burst in range(2):
+            for half in ((0x10, 0x11), (0x12, 0x13)):  # two datagrams per burst
+                sender.send_frames([encoder.encode(board, bytes([burst])) for board in half])
+        time.sleep(0.05)
+        frames = receiver.recv_newest(timeout=1.0)
+        assert [(f.receiver, f.payload) for f in frames] == [(b, b"\x01") for b in (0x10, 0x11, 0x12, 0x13)]
+        assert receiver.stats().superseded_chunks == 2
+    finally:
+        sender.shutdown()
+        receiver.shutdown()

@@ -352,8 +352,12 @@ class FrameDecoder:
         self._pending = b""
         self._synced = False
 
-    def feed(self, data: bytes | bytearray | memoryview) -> list[Frame]:
-        """Consume ``data`` and return the frames it completed, in stream order."""
+    def feed(self, data: bytes | bytearray | memoryview, *, resync_counters: bool = False) -> list[Frame]:
+        """Consume ``data`` and return the frames it completed, in stream order.
+
+        ``resync_counters``: the frames follow ones the caller skipped on purpose (``Transport.recv_newest``);
+        their counters restart the loss count instead of adding the gap to it.
+        """
         if not data:
             return []
         counters = self.counters
@@ -397,7 +401,7 @@ class FrameDecoder:
             else:
                 key = sender << 8 | receiver
                 previous = last[key]
-                if previous >= 0:
+                if previous >= 0 and not resync_counters:
                     lost[sender] += (counter - previous - 1) & 0xFF
                 last[key] = counter
                 frames_count[sender] += 1

@@ -270,9 +270,10 @@ class BoardsServer(LoopThread):
         while not self._stop.is_set():
             wait = max(next_tick - time.monotonic_ns(), 0) / 1e9
             if self.answer_bursts:
-                frames = transport.recv(timeout=wait)
+                # bursts the boards fell behind on (a simulation slower than real time) are superseded unread
+                frames = transport.recv_newest(timeout=wait)
                 if frames:  # the rest of the burst follows within microseconds (several datagrams)
-                    frames += transport.recv(timeout=BURST_GAP_S)
+                    frames += transport.recv_newest(timeout=BURST_GAP_S)
                 elif time.monotonic_ns() < next_tick:
                     continue
             else:

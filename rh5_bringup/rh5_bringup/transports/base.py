@@ -14,7 +14,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Hashable, Iterable
 from typing import NamedTuple, Self
 
-from rh5_bringup.ndlcom.codec import BROADCAST, DecoderStats, Frame, FrameDecoder, LinkCounters
+from rh5_bringup.ndlcom.codec import BROADCAST, ESCAPE, FLAG, DecoderStats, Frame, FrameDecoder, LinkCounters
 
 __all__ = [
     "Transport",
@@ -66,6 +66,15 @@ class TransportStats(NamedTuple):
     foreign_chunks: int
     """Chunks the backend ignored as not ours (e.g. CAN ids outside the NDLCom range)."""
     decoder: DecoderStats
+    superseded_chunks: int = 0
+    """Chunks ``recv_newest`` skipped undecoded because a newer burst from the same peer was waiting."""
+
+
+def _first_frame_key(data: bytes) -> tuple[int, int] | None:
+    """(receiver, sender) of the first frame of a chunk that starts with a flag and two unescaped bytes."""
+    if len(data) < 3 or data[0] != FLAG or ESCAPE in (data[1], data[2]):
+        return None
+    return data[1], data[2]
 
 
 class Transport(ABC):
@@ -81,6 +90,8 @@ class Transport(ABC):
 
     _is_shutdown: bool = True
     """Class default: a constructor that failed before ``Transport.__init__`` leaves nothing to shut down."""
+    chunks_hold_whole_frames: bool = False
+    """Whether every chunk carries whole frames (UDP datagrams do; CAN frames carry pieces of one)."""
 
     def __init__(self, receivers: Iterable[int] | None = None, max_send_bytes: int | None = None) -> None:
         self.max_send_bytes = max_send_bytes
@@ -98,6 +109,7 @@ class Transport(ABC):
         self._sent_frames = self._sent_bytes = self._sent_chunks = 0
         self._received_bytes = self._received_chunks = self._filtered = 0
         self._foreign_chunks = 0
+        self._superseded = 0
         self._is_shutdown = False
 
     # ----------------------------------------------------------------------------------------- backend hooks
@@ -157,6 +169,43 @@ class Transport(ABC):
             frames += self._decode(chunk)
         return frames
 
+    def recv_newest(self, timeout: float | None = None) -> list[Frame]:
+        """Like ``recv``, but of the chunks already waiting only the newest burst of each peer is decoded.
+
+        For a receiver slower than its peer (a simulation behind real time): every command burst supersedes
+        the one before, so decoding the stale ones only costs time. Going from the newest chunk back, chunks
+        are kept until one starts with a (receiver, sender) pair a kept one already has (an older burst);
+        the rest are counted in ``superseded_chunks`` and their frame-counter gap is not counted as loss.
+        Links whose chunks carry pieces of frames (CAN) fall back to ``recv``.
+        """
+        if not self.chunks_hold_whole_frames:
+            return self.recv(timeout)
+        self._check_open()
+        first = self._recv_bytes(timeout)
+        if first is None:
+            return []
+        chunks = [first]
+        for _ in range(MAX_DRAIN_READS):
+            chunk = self._recv_bytes(0.0)
+            if chunk is None:
+                break
+            chunks.append(chunk)
+        kept: list[tuple[bytes, Hashable]] = []
+        seen: set[tuple[Hashable, int, int]] = set()
+        for data, stream in reversed(chunks):
+            key = _first_frame_key(data)
+            if key is not None and (stream, *key) in seen:
+                break
+            if key is not None:
+                seen.add((stream, *key))
+            kept.append((data, stream))
+        skipped = len(chunks) - len(kept)
+        self._superseded += skipped
+        frames: list[Frame] = []
+        for k, chunk in enumerate(reversed(kept)):
+            frames += self._decode(chunk, resync=skipped > 0 and k == 0)
+        return frames
+
     def recv_frames(self, count: int, timeout: float) -> list[Frame]:
         """Collect at least ``count`` frames within ``timeout`` s.
 
@@ -173,7 +222,7 @@ class Transport(ABC):
             frames += self.recv(remaining)
         return frames
 
-    def _decode(self, chunk: tuple[bytes, Hashable]) -> list[Frame]:
+    def _decode(self, chunk: tuple[bytes, Hashable], *, resync: bool = False) -> list[Frame]:
         data, stream = chunk
         self._received_chunks += 1
         if not data:
@@ -183,7 +232,7 @@ class Transport(ABC):
         decoder = self._decoders.get(stream)
         if decoder is None:
             decoder = self._decoders[stream] = FrameDecoder(self._counters)
-        frames = decoder.feed(data)
+        frames = decoder.feed(data, resync_counters=resync)
         accept = self._accept
         if accept is None or not frames:
             return frames
@@ -242,6 +291,7 @@ class Transport(ABC):
             self._filtered,
             self._foreign_chunks,
             self._counters.snapshot(),
+            self._superseded,
         )
 
     @property

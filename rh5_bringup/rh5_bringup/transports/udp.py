@@ -36,6 +36,8 @@ class UdpTransport(Transport):
     :raises TransportInitError: the socket cannot be created or bound.
     """
 
+    chunks_hold_whole_frames = True  # a datagram carries whole frames (send_frames never splits one)
+
     def __init__(
         self,
         local: Address = ("127.0.0.1", 0),
