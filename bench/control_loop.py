@@ -54,7 +54,7 @@ def free_port() -> int:
 def sine_trajectory(centre: np.ndarray, seconds: float) -> Any:
     """A JointTrajectory: every joint swings SINE_RAD around ``centre`` (inside its limits) at SINE_HZ."""
     limits = joint_limits()
-    low, high = np.asarray(limits.position_min) + SINE_RAD, np.asarray(limits.position_max) - SINE_RAD
+    low, high = np.asarray(limits.position_lower) + SINE_RAD, np.asarray(limits.position_upper) - SINE_RAD
     centre = np.clip(centre, low, high)
     t = np.arange(0.0, seconds, 0.01)
     w = 2 * np.pi * SINE_HZ
@@ -178,6 +178,11 @@ def report(statuses: list[dict[str, str]], args: argparse.Namespace) -> None:
     print(f"  {'deadline misses during the run':<40} {missed:10d}   target 0")
     if len(cycle):
         print(f"  {'cycle work p99 [us] (worst)':<40} {float(cycle.max()):10.2f}   (read to write)")
+        for stage in ("cpu", "read", "to_joints", "stabilize", "to_actuators", "write"):
+            p50, p99 = (values(statuses, f"cycle.{stage}.{k}_us") for k in ("p50", "p99"))
+            print(f"    {stage:<14} p50 {float(np.median(p50)):7.1f} us   p99 (worst) {float(p99.max()):7.1f} us")
+        dropped = values(statuses, "publish.dropped")
+        print(f"  {'publisher drops during the run':<40} {int(dropped[-1] - dropped[0]):10d}")
 
 
 if __name__ == "__main__":

@@ -77,6 +77,7 @@ class ControlCycle:
         self.compute = LatencyWindow()
         """Duration of the whole cycle, read to write (ns)."""
         self.stages = {name: LatencyWindow() for name in STAGES}
+        self.cpu = LatencyWindow()
         """Duration of each step of the cycle (ns), to see where a long cycle spent its time."""
         self.measurement: Measurement | None = None
         self._actuator_states: Triple | None = None
@@ -97,6 +98,7 @@ class ControlCycle:
     def step(self, now_ns: int, period_ns: int) -> None:
         """Run one cycle: read, map, stabilise, map, write; then hand the cycle's data to the publisher."""
         driver, clock, stages = self.driver, time.monotonic_ns, self.stages
+        cpu0 = time.thread_time_ns()
         readings = driver.read(now_ns, period_ns)
         t_read = clock()
         stages["read"].add(t_read - now_ns)
@@ -133,6 +135,7 @@ class ControlCycle:
         if actuator_commands is not None and driver.frames_read and driver.mode is CommandMode.POSITION_FF:
             self.telemetry_to_command.add(sent_ns - driver.read_ns)
         self.compute.add(clock() - now_ns)
+        self.cpu.add(time.thread_time_ns() - cpu0)
         if self._hand_off is not None:
             self._hand_off(
                 CycleSample(

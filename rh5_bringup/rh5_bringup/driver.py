@@ -6,7 +6,7 @@ reads, computes the command from that telemetry, then writes (rh5_bringup.contro
 Safety, in order of precedence:
 - estop (latched until reset), a silent board (latched safe hold until re-enabled), not
   enabled, or a command older than ``command_timeout`` -> every board is told to HOLD;
-- setpoints outside the stroke, velocity and force limits are clamped (and counted);
+- setpoints outside the stroke, velocity and force limits (or the wire's range) are clamped (and counted);
 - non-finite commands are refused on arrival, and a cycle that finds one anyway sends HOLD;
 - telemetry from addresses outside the board map is dropped and counted.
 """
@@ -23,6 +23,7 @@ import numpy as np
 
 from rh5_bringup.ndlcom.board_map import BoardMap
 from rh5_bringup.ndlcom.codec import FrameEncoder
+from rh5_bringup.ndlcom.command_frames import CommandFrames
 from rh5_bringup.ndlcom.payloads import (
     TELEMETRY_LAYOUT,
     TELEMETRY_VERSION,
@@ -30,7 +31,6 @@ from rh5_bringup.ndlcom.payloads import (
     PayloadType,
     TelemetryArrays,
     decode_telemetry_of,
-    encode_command_block,
 )
 from rh5_bringup.transports.base import Transport
 from rh5_msgs_py.realtime import LatencyWindow, LatestValue
@@ -90,7 +90,14 @@ class DriverCore:
         self._table = board_map.scaling_table()
         self._encoder = FrameEncoder(board_map.pc_address)
         self._addresses = board_map.addresses()
-        self._address_array = np.array(self._addresses, dtype=np.intp)
+        self._frames = CommandFrames(self._encoder, self._addresses, self._table)
+        # setpoints are clamped to the actuator limits and to what the wire can carry, so every frame encodes
+        self._clip_low = np.maximum(
+            np.array([limits.position_min, -limits.velocity_max, -limits.effort_max]), self._frames.low
+        )
+        self._clip_high = np.minimum(
+            np.array([limits.position_max, limits.velocity_max, limits.effort_max]), self._frames.high
+        )
         self._index_of = {board.address: board.index for board in board_map}
         n = len(board_map)
         self.command: LatestValue[ActuatorCommand] = LatestValue()
@@ -168,10 +175,10 @@ class DriverCore:
         if not all(np.isfinite(x).all() for x in command):  # refused on arrival too; never on the wire
             self.counts["non_finite_command_cycles"] += 1
             return CommandMode.HOLD, None
-        lim = self.limits
-        position = np.clip(command.position, lim.position_min, lim.position_max)
-        velocity = np.clip(command.velocity, -lim.velocity_max, lim.velocity_max)
-        effort = np.clip(command.effort, -lim.effort_max, lim.effort_max)
+        low, high = self._clip_low, self._clip_high
+        position = np.clip(command.position, low[0], high[0])
+        velocity = np.clip(command.velocity, low[1], high[1])
+        effort = np.clip(command.effort, low[2], high[2])
         clamped = (position != command.position) | (velocity != command.velocity) | (effort != command.effort)
         if clamped.any():
             self.clamped.update(self.board_map.boards[i].name for i in np.flatnonzero(clamped))
@@ -214,22 +221,11 @@ class DriverCore:
         self._start(now_ns, period_ns)
         mode, command = self._setpoints(now_ns)
         self.mode = mode
-        n = len(self._addresses)
         if command is None:
-            zeros = np.zeros(n)
-            payloads = encode_command_block(
-                np.full(n, int(mode)), zeros, zeros, zeros, sequence=self.sequence, table=self._table
-            )
+            frames = self._frames.frames(mode, self.sequence)
         else:
-            payloads = encode_command_block(
-                np.full(n, int(mode)),
-                command.position,
-                command.velocity,
-                command.effort,
-                sequence=self.sequence,
-                table=self._table,
-            )
-        self.transport.send_frames(self._encoder.encode_block(self._address_array, payloads))
+            frames = self._frames.frames(mode, self.sequence, command.position, command.velocity, command.effort)
+        self.transport.send_frames(frames)
         sent_ns = time.monotonic_ns()
         self._sent_ns[self.sequence % len(self._sent_ns)] = now_ns
         self.counts["cycles"] += 1

@@ -178,46 +178,16 @@ class FrameEncoder:
         """The next frame from this sender to ``receiver``."""
         return encode_frame(receiver, self.sender, self.counter.next(receiver), payload)
 
-    def encode_block(self, receivers: np.ndarray, payloads: np.ndarray) -> list[bytes]:
-        """The next frame to each of ``receivers`` (distinct ids), with equal-length ``payloads`` (one row each,
-        uint8): the bytes of ``encode`` per row, computed for all rows at once.
 
-        The driver's 1 kHz cycle sends one frame per board; per frame in Python that is most of its write.
-        Here the FCS of every row is one table gather and one XOR reduction (the CRC of a fixed-length message
-        is affine in its bytes, ``_fcs_tables``), and only rows that contain a flag or escape byte are escaped
-        one by one.
-        """
-        receivers = np.asarray(receivers, dtype=np.intp)
-        n, length = payloads.shape
-        if len(receivers) != n or len(np.unique(receivers)) != n:
-            raise FrameError(f"{n} payload rows need {n} distinct receivers, got {receivers.tolist()}")
-        if length > MAX_PAYLOAD or (n and not 0 <= receivers.min() <= receivers.max() <= 0xFF):
-            raise FrameError(f"receivers must be 0..255 and payloads at most {MAX_PAYLOAD} bytes, got {length}")
-        counters = np.frombuffer(self.counter._next, dtype=np.uint8)
-        size = HEADER.size + length
-        wire = np.empty((n, size + 4), dtype=np.uint8)
-        wire[:, 0] = wire[:, -1] = FLAG
-        body = wire[:, 1 : size + 1]
-        body[:, 0], body[:, 1], body[:, 2], body[:, 3] = receivers, self.sender, counters[receivers], length
-        body[:, HEADER.size :] = payloads
-        counters[receivers] += 1  # uint8: wraps at 256
-        tables, init = _fcs_tables(size)
-        fcs = np.bitwise_xor.reduce(tables[_POSITIONS[:size], body], axis=1) ^ init
-        wire[:, size + 1], wire[:, size + 2] = fcs & 0xFF, fcs >> 8
-        blob, step = wire.tobytes(), size + 4
-        frames = [blob[k : k + step] for k in range(0, n * step, step)]
-        inner = wire[:, 1:-1]
-        for k in np.flatnonzero(((inner == FLAG) | (inner == ESCAPE)).any(axis=1)):
-            raw = frames[k][1:-1].replace(_ESC_BYTES, _ESCAPED_ESC).replace(_FLAG_BYTES, _ESCAPED_FLAG)
-            frames[k] = _FLAG_BYTES + raw + _FLAG_BYTES
-        return frames
-
-
-_POSITIONS: Final = np.arange(MAX_FRAME_SIZE)
+def escape_body(raw: bytes) -> bytes:
+    """A frame on the wire from its unescaped header + payload + FCS: escaped, between two flags."""
+    if _ESC_BYTES in raw or _FLAG_BYTES in raw:
+        raw = raw.replace(_ESC_BYTES, _ESCAPED_ESC).replace(_FLAG_BYTES, _ESCAPED_FLAG)
+    return _FLAG_BYTES + raw + _FLAG_BYTES
 
 
 @functools.cache
-def _fcs_tables(size: int) -> tuple[np.ndarray, int]:
+def fcs_tables(size: int) -> tuple[np.ndarray, int]:
     """Per byte position of a ``size``-byte message: the FCS contribution of each byte value (size, 256), and
     the FCS of ``size`` zero bytes from the initial value. The FCS from a zero start is linear over GF(2),
     so fcs(m) = init_part XOR (XOR over positions i of table[i, m_i])."""

@@ -39,7 +39,6 @@ __all__ = [
     "decode_telemetry_many",
     "decode_telemetry_of",
     "encode_command",
-    "encode_command_block",
     "encode_commands",
     "encode_telemetry",
     "encode_telemetry_many",
@@ -424,21 +423,6 @@ def encode_commands(
 ) -> list[bytes]:
     """COMMAND v1 payloads for n boards at once (one per board, in table order); the same checks and bytes as
     ``encode_command``, raising ``PayloadError`` naming the first offending board."""
-    block = encode_command_block(modes, setpoint, velocity_ff, effort_ff, sequence=sequence, table=table)
-    blob, size = block.tobytes(), COMMAND_LAYOUT.size
-    return [blob[i : i + size] for i in range(0, len(block) * size, size)]
-
-
-def encode_command_block(
-    modes: Sequence[int] | np.ndarray,
-    setpoint: Sequence[float] | np.ndarray,
-    velocity_ff: Sequence[float] | np.ndarray,
-    effort_ff: Sequence[float] | np.ndarray,
-    *,
-    sequence: int,
-    table: ScalingTable,
-) -> np.ndarray:
-    """``encode_commands`` as one (n, payload size) uint8 array, a row per board (for ``FrameEncoder.encode_block``)."""
     n = len(table)
     mode_array = np.asarray(modes)
     if (
@@ -470,7 +454,8 @@ def encode_command_block(
     out["type"], out["version"] = PayloadType.COMMAND, COMMAND_VERSION
     out["mode"], out["sequence"] = mode_array, sequence
     out["setpoint"], out["velocity_ff"], out["effort_ff"] = raw
-    return out.view(np.uint8).reshape(n, COMMAND_LAYOUT.size)
+    blob, size = out.tobytes(), COMMAND_LAYOUT.size
+    return [blob[i : i + size] for i in range(0, n * size, size)]
 
 
 class TelemetryArrays(NamedTuple):
@@ -524,8 +509,8 @@ def decode_telemetry_of(
     """Decode TELEMETRY v1 payloads of the boards at ``boards`` (table indices, any subset) in one pass.
 
     The payloads must have the size, type and version bytes of TELEMETRY v1 (checked per frame by the caller,
-    cheaply); returns which of them also pass the mode and reserved-field
-    checks of ``decode_telemetry`` (the rest are to be dropped) and the arrays of all of them, in SI units.
+    cheaply); returns which of them also pass the mode and reserved-field checks of ``decode_telemetry`` (the
+    rest are to be dropped) and the arrays of all of them, in SI units.
     """
     rec = np.frombuffer(b"".join(payloads), dtype=TELEMETRY_DTYPE)
     valid = (rec["mode"] <= _MAX_MODE) & (rec["reserved"] == 0) & (rec["reserved2"] == 0)
