@@ -78,6 +78,7 @@ class ControlCycle:
         """Duration of the whole cycle, read to write (ns)."""
         self.stages = {name: LatencyWindow() for name in STAGES}
         self.cpu = LatencyWindow()
+        """CPU time of the cycle's thread per cycle (ns): wall time beyond it is waiting (interpreter lock, host)."""
         """Duration of each step of the cycle (ns), to see where a long cycle spent its time."""
         self.measurement: Measurement | None = None
         self._actuator_states: Triple | None = None

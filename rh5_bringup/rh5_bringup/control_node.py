@@ -14,7 +14,6 @@ latency, cycle duration and publisher drops.
 
 from __future__ import annotations
 
-import os
 from typing import Any, Final
 
 from rh5_bringup.control_cycle import ControlCycle, CycleSample
@@ -48,7 +47,7 @@ class ControlNode(SuiteNode):
             stabilizer.step,
             estop_to_stabilizer=stabilizer.core.set_estop,
             state_changed=lambda: stabilizer.state_changed,
-            hand_off=self._hack_handoff,
+            hand_off=self.publisher.try_publish,
         )
         self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
@@ -72,14 +71,6 @@ class ControlNode(SuiteNode):
         self.helper_realtime = request_realtime(helper_priority)  # this thread: the executor's
         self.publisher.start()
         self.loop.start()
-
-    _k = 0
-
-    def _hack_handoff(self, sample):
-        self._k += 1
-        if self._k % int(os.environ.get("RH5_PUBEVERY", "1")) == 0:
-            return self.publisher.try_publish(sample)
-        return False
 
     def _publish(self, sample: CycleSample) -> None:
         """The publisher thread: the cycle's four topics (serialised directly: ``encode_serialized``) and a

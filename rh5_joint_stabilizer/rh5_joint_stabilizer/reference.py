@@ -9,7 +9,7 @@ every millisecond with cubic Hermite splines through the knots' positions and ve
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -41,6 +41,14 @@ class PlannedTrajectory:
     positions: FloatArray  # (N, 32)
     velocities: FloatArray  # (N, 32)
     efforts: FloatArray  # (N, 32)
+    _segments: FloatArray = field(init=False, repr=False, compare=False)
+    """(N-1, 4, 32): each segment's p0, h v0, p1, h v1, so that a sample is two 4-vector products (1 kHz)."""
+
+    def __post_init__(self) -> None:
+        h = np.diff(self.times)[:, None]
+        p, v = self.positions, self.velocities
+        segments = np.stack([p[:-1], v[:-1] * h, p[1:], v[1:] * h], axis=1) if len(p) > 1 else np.zeros((0, 4, 0))
+        object.__setattr__(self, "_segments", segments)
 
     @property
     def duration(self) -> float:
@@ -58,12 +66,9 @@ class PlannedTrajectory:
         h = times[k + 1] - times[k]
         s = (t - times[k]) / h
         s2, s3 = s * s, s * s * s
-        p0, p1 = self.positions[k], self.positions[k + 1]
-        m0, m1 = self.velocities[k] * h, self.velocities[k + 1] * h
-        position = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * m0 + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * m1
-        velocity = (
-            (6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * m0 + (-6 * s2 + 6 * s) * p1 + (3 * s2 - 2 * s) * m1
-        ) / h
+        segment = self._segments[k]
+        position = np.array((2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2)) @ segment
+        velocity = np.array((6 * s2 - 6 * s, 3 * s2 - 4 * s + 1, -6 * s2 + 6 * s, 3 * s2 - 2 * s)) @ segment / h
         effort = (1 - s) * self.efforts[k] + s * self.efforts[k + 1]
         return ReferenceSample(position, velocity, effort)
 
