@@ -20,7 +20,7 @@ from rh5_joint_stabilizer.balance import AnkleBalanceCorrection, ankle_axes_worl
 from rh5_joint_stabilizer.controller import Command, Measurement, SafetyLimits, StabilizerCore, State, load_gains
 from rh5_joint_stabilizer.reference import PlannedTrajectory, TrajectoryRejectedError, validate_trajectory
 from rh5_msgs_py import interfaces
-from rh5_msgs_py.conversions import JointStateCodec, Level, Status, diagnostics_to_msg, joint_trajectory_from_msg
+from rh5_msgs_py.conversions import JointStateCodec, Level, Status, diagnostics_to_msg, joint_trajectory_from_cdr
 from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS
 from rh5_msgs_py.node_runtime import SuiteNode, log_realtime_grant, run_node
 from rh5_msgs_py.realtime import DeadlineLoop, LatestValue
@@ -91,7 +91,8 @@ class StabilizerNode(SuiteNode):
         self.command_codec = JointStateCodec(JOINT_NAMES)
         self.publish_commands = self.advertise(interfaces.JOINT_COMMANDS)
         self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
-        self.subscribe(interfaces.PLANNED_TRAJECTORY, self._on_trajectory)
+        # raw: a long trajectory converted by rclpy holds the interpreter lock for tens of ms (a stall of the cycle)
+        self.subscribe(interfaces.PLANNED_TRAJECTORY, self._on_trajectory, raw=True)
         if not composed:
             self.subscribe_stream(interfaces.JOINT_STATES, self._on_joint_states)
             self.subscribe(interfaces.DRIVER_ESTOP, self._on_estop)
@@ -153,7 +154,7 @@ class StabilizerNode(SuiteNode):
 
     def _on_trajectory(self, msg: Any) -> None:
         try:
-            arrays = joint_trajectory_from_msg(msg, allow_extra=True)
+            arrays = joint_trajectory_from_cdr(msg, allow_extra=True)
             trajectory = validate_trajectory(
                 arrays.joint_names,
                 arrays.times,

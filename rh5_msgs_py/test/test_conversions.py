@@ -29,6 +29,7 @@ from rh5_msgs_py.conversions import (
     duration_to_s,
     joint_state_from_msg,
     joint_state_to_msg,
+    joint_trajectory_from_cdr,
     joint_trajectory_from_msg,
     joint_trajectory_to_msg,
     status_from_msg,
@@ -526,3 +527,30 @@ def test_serialized_joint_state_is_the_message_rclpy_would_send(present: tuple[b
             assert list(getattr(received, field)) == list(getattr(expected, field)), field
     with pytest.raises(ValueError, match="shape"):
         codec.encode_serialized(np.zeros(3))
+
+
+@pytest.mark.parametrize("points", [0, 1, 2, 3, 6, 301])
+@pytest.mark.parametrize(("velocities", "efforts"), [(True, True), (False, True), (True, False), (False, False)])
+def test_trajectory_from_cdr_reads_what_rclpy_reads(points: int, velocities: bool, efforts: bool) -> None:
+    """The strided read of a serialised JointTrajectory (even and odd points may be padded differently) gives
+    what rclpy's deserialisation gives, also reordered to other names; ragged points fall back to rclpy."""
+    from rclpy.serialization import deserialize_message, serialize_message
+    from trajectory_msgs.msg import JointTrajectory
+
+    rng = np.random.default_rng(points)
+    q = rng.normal(size=(points, len(JOINT_NAMES)))
+    msg = joint_trajectory_to_msg(
+        JOINT_NAMES, np.arange(points) * 0.01 + 5e-10, q, velocities=2 * q if velocities else None,
+        efforts=3 * q if efforts else None, stamp_ns=1_700_000_000_123_456_789, frame_id="world",
+    )  # fmt: skip
+    data = serialize_message(msg)
+    for names in (None, tuple(reversed(JOINT_NAMES))):
+        fast = joint_trajectory_from_cdr(data, names)
+        slow = joint_trajectory_from_msg(deserialize_message(data, JointTrajectory), names)
+        for field in slow._fields:
+            a, b = getattr(fast, field), getattr(slow, field)
+            assert np.array_equal(a, b) if isinstance(b, np.ndarray) else a == b, field
+    if points > 1:
+        msg.points[1].positions = msg.points[1].positions[:-1]  # ragged: rclpy's path, and its error
+        with pytest.raises(ValueError, match="JointTrajectory"):
+            joint_trajectory_from_cdr(serialize_message(msg))
