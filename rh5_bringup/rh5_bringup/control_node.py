@@ -31,7 +31,7 @@ PUBLISH_SLACK_NS: Final = 150_000
 HELPER_PRIORITY_BELOW: Final = 10
 """The publisher and executor threads run this far below the cycle's SCHED_FIFO priority."""
 STATUS_SLACK_NS: Final = 300_000
-"""The same for the stabilizer's status message (a few hundred key-values)."""
+"""The same for a node's /diagnostics status (up to a hundred key-values)."""
 
 
 class ControlNode(SuiteNode):
@@ -60,6 +60,8 @@ class ControlNode(SuiteNode):
             on_realtime=lambda grant: log_realtime_grant(self.get_logger(), grant),
         )
         self.context.on_shutdown(self.loop.stop)  # SIGINT shuts the context down before the nodes are destroyed
+        for node in (self, driver, mapper, stabilizer):
+            node.status_gate = lambda: self.loop.wait_for_slack(STATUS_SLACK_NS)
         # The publisher and the executor share the interpreter lock with the cycle. At normal priority the OS may
         # preempt them while they hold it (the simulation is busy on both cores), and the cycle then waits for
         # milliseconds: a priority inversion. They get SCHED_FIFO just below the cycle; they never spin, and
@@ -92,8 +94,7 @@ class ControlNode(SuiteNode):
             codec = mapper.actuator_codec_out
             mapper.publish_actuator_commands(codec.encode_serialized(*sample.actuator_commands, stamp_ns=stamp))
         if sample.stabilizer_state_changed:
-            slack(STATUS_SLACK_NS)
-            stabilizer.publish_status()
+            stabilizer.publish_status()  # waits for the slack itself (status_gate)
 
     def diagnostics(self) -> dict[str, object]:
         """The cycle's timing, real-time grant, latency and publisher counts (the ``rh5/control`` values)."""
@@ -114,6 +115,7 @@ class ControlNode(SuiteNode):
         return values
 
     def _publish_status(self) -> None:
+        self.status_gate()
         values = self.diagnostics()
         if self.loop.error is not None:
             level, message = Level.ERROR, f"control cycle died: {self.loop.error!r}"

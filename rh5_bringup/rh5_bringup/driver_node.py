@@ -144,6 +144,7 @@ class DriverNode(SuiteNode):
         return response
 
     def _publish_status(self) -> None:
+        self.status_gate()
         core = self.core
         values: dict[str, object] = {
             "mode": core.mode.name,

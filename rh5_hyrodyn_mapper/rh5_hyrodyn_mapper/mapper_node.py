@@ -103,6 +103,7 @@ class MapperNode(SuiteNode):
             )
 
     def _publish_status(self) -> None:
+        self.status_gate()
         level = Level.WARN if self.rejected or self.clamped else Level.OK
         values: dict[str, object] = {f"rejected.{k}": n for k, n in self.rejected.items()}
         values.update({f"clamped.{k}": n for k, n in self.clamped.items()})

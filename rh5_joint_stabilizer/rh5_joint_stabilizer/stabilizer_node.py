@@ -235,6 +235,7 @@ class StabilizerNode(SuiteNode):
 
     def publish_status(self) -> None:
         """The stabilizer's /diagnostics status: state, reason, loop timing (on its own) and tracking errors."""
+        self.status_gate()
         rms, peak = self.tracking.rms_and_max()
         trajectory = self.core.trajectory
         values: dict[str, object] = {

@@ -40,6 +40,10 @@ class SuiteNode(Node):
         self.seen: Counter[str] = Counter()
         self.sent: Counter[str] = Counter()
         self._streams: StreamThread | None = None
+        self.status_gate: Callable[[], object] = lambda: None
+        """Called before the node builds and publishes its /diagnostics status: a real-time loop of the process
+        makes it wait for the loop's slack (a status is hundreds of microseconds of work under the interpreter
+        lock)."""
 
     @property
     def params(self) -> dict[str, Any]:
