@@ -113,6 +113,8 @@ class DriverCore:
         self.counts: Counter[str] = Counter()
         self.clamped: Counter[str] = Counter()
         self.mode = CommandMode.HOLD
+        self._checked_source: ActuatorCommand | None = None
+        self._checked: tuple[ActuatorCommand | None, list[str]] = (None, [])
         self._sent_ns = np.zeros(256, dtype=np.int64)  # send time of the latest 256 sequence numbers
         self._echoed = np.full(n, -1, dtype=np.int64)
         self.latency = LatencyWindow()
@@ -172,17 +174,27 @@ class DriverCore:
         if now_ns - stamp_ns > self.command_timeout_ns:
             self.counts["stale_command_cycles"] += 1
             return CommandMode.HOLD, None
-        if not all(np.isfinite(x).all() for x in command):  # refused on arrival too; never on the wire
+        if command is not self._checked_source:  # the same command object again: its check still holds
+            self._checked_source, self._checked = command, self._check(command)
+        checked, clamped_names = self._checked
+        if checked is None:  # refused on arrival too; never on the wire
             self.counts["non_finite_command_cycles"] += 1
             return CommandMode.HOLD, None
+        if clamped_names:
+            self.clamped.update(clamped_names)
+        return CommandMode.POSITION_FF, checked
+
+    def _check(self, command: ActuatorCommand) -> tuple[ActuatorCommand | None, list[str]]:
+        """A command clamped to the limits within the wire range, and which boards it clamped; None if not finite."""
+        if not all(np.isfinite(x).all() for x in command):
+            return None, []
         low, high = self._clip_low, self._clip_high
         position = np.clip(command.position, low[0], high[0])
         velocity = np.clip(command.velocity, low[1], high[1])
         effort = np.clip(command.effort, low[2], high[2])
         clamped = (position != command.position) | (velocity != command.velocity) | (effort != command.effort)
-        if clamped.any():
-            self.clamped.update(self.board_map.boards[i].name for i in np.flatnonzero(clamped))
-        return CommandMode.POSITION_FF, ActuatorCommand(position, velocity, effort)
+        names = [self.board_map.boards[i].name for i in np.flatnonzero(clamped)]
+        return ActuatorCommand(position, velocity, effort), names
 
     def _start(self, now_ns: int, period_ns: int) -> None:
         if not self.started_ns:

@@ -167,8 +167,10 @@ class StabilizerNode(SuiteNode):
             self.get_logger().error(f"planned_trajectory rejected: {err}")
             self.events.append(f"trajectory rejected: {err}")
             self.core.reject(f"planned_trajectory: {err}")
-            return
-        self._accept(trajectory, "planned_trajectory")
+        else:
+            self._accept(trajectory, "planned_trajectory")
+        # at once, not at the next 1 Hz status: on a simulation's /clock that can be many wall seconds away
+        self.publish_status()
 
     def _on_joint_states(self, msg: Any) -> None:
         try:
