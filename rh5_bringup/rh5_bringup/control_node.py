@@ -5,9 +5,10 @@ As ros2_control's controller manager does, the ``control`` node owns a single 1 
 commands) under SCHED_FIFO, and hosts the ``driver``, ``mapper`` and ``stabilizer`` nodes with their
 own names, parameters, services and diagnostics. The four 1 kHz topics (``actuator_states``,
 ``joint_states``, ``joint_commands``, ``actuator_commands``) keep their names, types and rates; a
-publisher thread at normal priority sends them, dropping a sample rather than delaying the cycle.
+publisher thread sends them in the cycle's slack, dropping a sample rather than delaying the cycle.
+The publisher and executor threads run at SCHED_FIFO just below the cycle (see ``__init__``).
 ``/diagnostics`` status ``rh5/control``: loop timing, the real-time grant, telemetry-to-command
-latency, cycle duration and publisher drops.
+latency, cycle duration (wall and CPU, per step) and publisher drops.
 
     ros2 run rh5_bringup control_node --ros-args --params-file control.yaml   # (rh5 up starts it)
 """
