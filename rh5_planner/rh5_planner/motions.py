@@ -139,6 +139,9 @@ class MotionSpec:
     ``costs``: the cost terms to switch on; None takes costs.yaml ``motion_costs[name]`` (the paper's table).
     ``payload_kg_per_hand``: mass added at each hand TCP (the paper's 5 kg aluminium bars).
     ``knee_bend_rad``: knee flexion of the initial (nominal) pose; the CoM is placed over the middle of the feet.
+    ``actuator_limits``: also bound the linear actuators' stroke, velocity and force (Table I, through the
+    parallel mechanisms' exact maps; costs.yaml ``actuator_limits``); False plans with the paper's cost set
+    (``--set actuator_limits=false`` reproduces its feasibility table).
     """
 
     name: str
@@ -147,6 +150,7 @@ class MotionSpec:
     payload_kg_per_hand: float = 0.0
     knee_bend_rad: float = 0.5
     costs: tuple[str, ...] | None = None
+    actuator_limits: bool = False
 
     kind: ClassVar[str] = "abstract"
     kinematic_guess: ClassVar[bool] = False
@@ -643,7 +647,15 @@ MOTIONS: Final[dict[str, MotionSpec]] = {
     for m in (
         # paper table: 0.5 m, 5 cm step height, 1.5 s, 30 ms knots, 0.35 m/s (0.33 m/s average), 5 kg per hand;
         # then 0.5 s standing to come to rest (not in the table: a robot has to stop after the walk)
-        WalkMotion("walk_with_5kg_weights", dt=0.03, total_time_s=1.5, payload_kg_per_hand=5.0, rest_s=0.5),
+        # actuator limits (issue 14) on for the three feasible paper motions and the three hardware experiments
+        WalkMotion(
+            "walk_with_5kg_weights",
+            dt=0.03,
+            total_time_s=1.5,
+            payload_kg_per_hand=5.0,
+            rest_s=0.5,
+            actuator_limits=True,
+        ),
         # paper table: 0.7 m, 0.1 m step height, 0.7 s, 30 ms; > 0.35 m/s, so a predefined CoM path
         WalkMotion(
             "fast_walk_1m_s",
@@ -658,18 +670,25 @@ MOTIONS: Final[dict[str, MotionSpec]] = {
             track_com=True,
         ),
         # paper table: 20 cm CoM range, 2 s, 30 ms, 5 kg per hand
-        SquatMotion("squat_with_5kg_weights", dt=0.03, total_time_s=2.0, com_range_m=0.2, payload_kg_per_hand=5.0),
+        SquatMotion(
+            "squat_with_5kg_weights",
+            dt=0.03,
+            total_time_s=2.0,
+            com_range_m=0.2,
+            payload_kg_per_hand=5.0,
+            actuator_limits=True,
+        ),
         # paper table: 0.9 s, 10 ms knots
-        JumpMotion("vertical_jump_1cm", dt=0.01, total_time_s=0.9, height_m=0.01),
+        JumpMotion("vertical_jump_1cm", dt=0.01, total_time_s=0.9, height_m=0.01, actuator_limits=True),
         JumpMotion("vertical_jump_10cm", dt=0.01, total_time_s=0.9, height_m=0.1),
         # paper table: 0.6 m, 0.25 m, 2.7 s, 10 ms (three jumps of 0.2 m over obstacles)
         JumpMotion("obstacle_jumps", dt=0.01, total_time_s=2.7, height_m=0.25, length_m=0.6, n_jumps=3),
         # hardware experiment I: five quasi-static phases
-        BalanceMotion("one_leg_balancing", dt=0.04, phases=_one_leg_phases(), step_length_m=0.0),
+        BalanceMotion("one_leg_balancing", dt=0.04, phases=_one_leg_phases(), step_length_m=0.0, actuator_limits=True),
         # hardware experiment II: CoM over the left foot, right step in two phases, CoM back to the centre
-        BalanceMotion("static_stepping", dt=0.04, phases=_stepping_phases(), step_length_m=0.15),
+        BalanceMotion("static_stepping", dt=0.04, phases=_stepping_phases(), step_length_m=0.15, actuator_limits=True),
         # hardware experiment III: 15 cm vertical base motion in 2 s, three times
-        SquatMotion("fast_squats", dt=0.03, total_time_s=6.3, com_range_m=0.15, n_squats=3),
+        SquatMotion("fast_squats", dt=0.03, total_time_s=6.3, com_range_m=0.15, n_squats=3, actuator_limits=True),
     )
 }
 """The nine motions with the paper's parameters, by name."""

@@ -71,6 +71,8 @@ from rh5_hyrodyn_mapper.model import build_model, joint_limits, model_hash, q_in
 from rh5_msgs_py.names import FOOT_FRAMES, HAND_FRAMES, JOINT_GROUPS, JOINT_NAMES
 from rh5_msgs_py.trajectory_file import TrajectoryData, save_trajectory
 
+from .actuator_bounds import ActuatorBounds
+from .actuator_constraints import ActuatorConstraints
 from .limit_analysis import FOOT_SIZE_M
 from .motions import SIDES, KnotSpec, MotionSpec, Reference
 
@@ -380,6 +382,10 @@ class _CostTerms:
     limit_bounds: crocoddyl.ActivationBounds
     cones: tuple[ContactCone, ...]
     foot_rotations: Mapping[str, FloatArray]
+    actuator_limits: bool = False
+    barriers: list[Any] = field(default_factory=list)
+    """Every node's joint-limit activation in build order (running nodes, then the terminal; None without one):
+    the actuator limits rewrite their bounds per node (actuator_constraints.ActuatorConstraints)."""
 
 
 def _make_terms(robot: RobotSetup, motion: MotionSpec, config: Mapping[str, Any]) -> _CostTerms:
@@ -415,7 +421,9 @@ def _make_terms(robot: RobotSetup, motion: MotionSpec, config: Mapping[str, Any]
     pin.framesForwardKinematics(model, data, robot.x0[: model.nq])
     rotations = {side: data.oMf[fid].rotation.copy() for side, fid in robot.foot_ids.items()}
     cones = contact_cones(config["contact_stability"], terms)
-    return _CostTerms(robot, config, terms, posture, control, bounds, cones, rotations)
+    return _CostTerms(
+        robot, config, terms, posture, control, bounds, cones, rotations, actuator_limits=bool(motion.actuator_limits)
+    )
 
 
 def contact_cones(settings: Mapping[str, Any], terms: frozenset[str]) -> tuple[ContactCone, ...]:
@@ -480,14 +488,19 @@ def _costs(ct: _CostTerms, spec: KnotSpec, nu: int, *, terminal: bool = False) -
                     crocoddyl.CostModelResidual(state, activation, residual),
                     float(cfg["contact_stability"]["weight"]),
                 )
-    if "joint" in ct.terms:
+    if "joint" in ct.terms or ct.actuator_limits:
+        # without the "joint" term the bounds are infinite until the actuator limits write theirs
+        bounds = ct.limit_bounds if "joint" in ct.terms else _unbounded(state.ndx)
         residual = crocoddyl.ResidualModelState(state, state.zero(), nu)
-        activation = crocoddyl.ActivationModelQuadraticBarrier(ct.limit_bounds)
+        activation = crocoddyl.ActivationModelQuadraticBarrier(bounds)
         costs.addCost(
             "joint_limits",
             crocoddyl.CostModelResidual(state, activation, residual),
             float(cfg["joint_limits"]["weight"]),
         )
+        ct.barriers.append(activation)
+    else:
+        ct.barriers.append(None)
     if "posture" in ct.terms or terminal:
         residual = crocoddyl.ResidualModelState(state, robot.x0, nu)
         activation = crocoddyl.ActivationModelWeightedQuad(ct.posture_weights**2)
@@ -500,6 +513,10 @@ def _costs(ct: _CostTerms, spec: KnotSpec, nu: int, *, terminal: bool = False) -
             "torque", crocoddyl.CostModelResidual(state, activation, residual), float(cfg["torque"]["weight"])
         )
     return costs
+
+
+def _unbounded(ndx: int) -> crocoddyl.ActivationBounds:
+    return crocoddyl.ActivationBounds(np.full(ndx, -np.inf), np.full(ndx, np.inf), 1.0)
 
 
 def _contact_model(
@@ -660,6 +677,8 @@ class BuiltProblem:
     xs_guess: list[FloatArray]
     us_guess: list[FloatArray]
     terms: frozenset[str]
+    actuators: ActuatorConstraints | None = None
+    """The per-node actuator bounds (None: the motion plans without actuator limits)."""
 
 
 def build_problem(
@@ -691,7 +710,45 @@ def build_problem(
     else:
         xs = [robot.x0.copy() for _ in range(len(specs) + 1)]
     us = list(problem.quasiStatic(xs[:-1]))
-    return BuiltProblem(motion, robot, specs, problem, xs, us, ct.terms)
+    actuators = _actuator_constraints(ct, specs, running, terminal, limit_scale) if ct.actuator_limits else None
+    if actuators is not None:
+        actuators.refresh(xs, us)
+    return BuiltProblem(motion, robot, specs, problem, xs, us, ct.terms, actuators)
+
+
+def _actuator_constraints(
+    ct: _CostTerms,
+    specs: Sequence[KnotSpec],
+    running: Sequence[crocoddyl.ActionModelAbstract],
+    terminal: crocoddyl.ActionModelAbstract,
+    limit_scale: LimitScaleLike | None,
+) -> ActuatorConstraints:
+    """The actuator bounds of every node (joint-limit barriers of ``ct.barriers``, control boxes of the running
+    contact nodes); the design heuristic's joint factors scale the matching actuator kinds (position -> stroke,
+    velocity -> velocity, torque -> force: a faster knee is a faster knee actuator)."""
+    model = ct.robot.model
+    factors = limit_factors(limit_scale)
+    bounds = ActuatorBounds(
+        ct.config["actuator_limits"],
+        len(specs) + 1,
+        {"stroke": factors["position"], "velocity": factors["velocity"], "force": factors["torque"]},
+    )
+    base = ct.limit_bounds if "joint" in ct.terms else _unbounded(ct.robot.state.ndx)
+    controls = [None if spec.impulse else m for spec, m in zip(specs, running, strict=True)]
+    kept = [i for i in range(len(specs) + 1) if i == len(specs) or not specs[i].impulse]
+    del terminal
+    return ActuatorConstraints(
+        bounds,
+        barriers=ct.barriers,
+        controls=controls,
+        joint_lb=np.asarray(base.lb),
+        joint_ub=np.asarray(base.ub),
+        tau_max=ct.robot.tau_max,
+        q_order=q_index(model),
+        v_order=v_index(model),
+        kept=kept,
+        nq=model.nq,
+    )
 
 
 # --------------------------------------------------------------------------------------------------
@@ -942,12 +999,20 @@ def solve(
             else min(int(stage.get("max_iterations", 50)), settings.max_iterations - iterations)
         )
         regularization = settings.stage_regularization if k > 0 else settings.guess_regularization
+        if built.actuators is not None and k > 0:
+            built.actuators.refresh(xs, us)  # bounds at the previous stage's optimum (the first: at the guess)
         solved = bool(solver.solve(xs, us, max(1, budget), feasible, regularization)) or monitor.stalled
         iterations += monitor.iterations
         stage_log.append(
             {"scale": dict(stage.get("scale", {})), "iterations": monitor.iterations, "cost": float(solver.cost)}
         )
         xs, us, feasible = list(solver.xs), list(solver.us), bool(solver.isFeasible)
+    actuator_log: dict[str, Any] = {"enforced": []}
+    if built.actuators is not None:
+        solved, extra, actuator_log = _refine_actuator_limits(
+            built, solver, settings, config, solved=solved, offset=iterations
+        )
+        iterations += extra
     solve_time = time.perf_counter() - t_solve
     solver.th_stop = settings.stop_threshold
     knots = len(built.specs)
@@ -971,6 +1036,7 @@ def solve(
         "nthreads": settings.nthreads,
         "cost_terms": sorted(built.terms),
         "mass_kg": robot_mass(built.robot),
+        "actuator_limits": actuator_log,
     }
     scaled = {
         f"{name}:{kind}": float(f[j])
@@ -983,6 +1049,53 @@ def solve(
     if not math.isfinite(log["cost"]):
         log["converged"] = False
     return _extract(built, solver, log)
+
+
+def _refine_actuator_limits(
+    built: BuiltProblem,
+    solver: crocoddyl.SolverBoxFDDP,
+    settings: SolverSettings,
+    config: Mapping[str, Any],
+    *,
+    solved: bool,
+    offset: int,
+) -> tuple[bool, int, dict[str, Any]]:
+    """Check the solution's exact actuator use at the knots and at 1 kHz; where a limit is exceeded, tighten the
+    bounds there, refresh every bound at the solution and solve the final stage again (costs.yaml
+    ``actuator_limits.refine_rounds`` times at most). Returns (solved, iterations spent, solver-log entry)."""
+    actuators = built.actuators
+    assert actuators is not None
+    settings_al = config["actuator_limits"]
+    rounds, extra = [], 0
+    check = actuators.check(_extract(built, solver, {}).to_trajectory_data())
+    for _ in range(int(settings_al.get("refine_rounds", 0))):
+        if check.ok:
+            break
+        changed = actuators.tighten_from(check)
+        xs, us = list(solver.xs), list(solver.us)
+        actuators.refresh(xs, us)
+        monitor = _ProgressCallback(
+            settings.callback, offset + extra, settings.cost_tolerance, settings.stall_iterations
+        )
+        solver.setCallbacks([monitor])
+        solver.th_stop = settings.stop_threshold
+        budget = max(1, min(int(settings_al.get("refine_iterations", 40)), settings.max_iterations - offset - extra))
+        solved = bool(solver.solve(xs, us, budget, bool(solver.isFeasible), settings.stage_regularization))
+        solved = solved or monitor.stalled
+        extra += monitor.iterations
+        rounds.append({"violations": len(check.over), "bounds_tightened": changed, "iterations": monitor.iterations})
+        check = actuators.check(_extract(built, solver, {}).to_trajectory_data())
+    log = {
+        "enforced": list(actuators.kinds),
+        "mechanisms": [unit.model.name for unit in actuators.bounds.units],
+        "form": "per-knot joint boxes at the iterate: joint-limit barrier (stroke, velocity), Box-FDDP box (force)",
+        "refreshes": actuators.refreshes,
+        "refine_rounds": rounds,
+        "within_limits": check.ok,
+        "violations_left": len(check.over),
+        "peak_utilisation": check.summary(),
+    }
+    return solved, extra, log
 
 
 def robot_mass(robot: RobotSetup) -> float:
