@@ -493,11 +493,10 @@ def _costs(ct: _CostTerms, spec: KnotSpec, nu: int, *, terminal: bool = False) -
         bounds = ct.limit_bounds if "joint" in ct.terms else _unbounded(state.ndx)
         residual = crocoddyl.ResidualModelState(state, state.zero(), nu)
         activation = crocoddyl.ActivationModelQuadraticBarrier(bounds)
-        costs.addCost(
-            "joint_limits",
-            crocoddyl.CostModelResidual(state, activation, residual),
-            float(cfg["joint_limits"]["weight"]),
-        )
+        weight = cfg["joint_limits"]["weight"]
+        if ct.actuator_limits and cfg["actuator_limits"].get("barrier_weight") is not None:
+            weight = cfg["actuator_limits"]["barrier_weight"]
+        costs.addCost("joint_limits", crocoddyl.CostModelResidual(state, activation, residual), float(weight))
         ct.barriers.append(activation)
     else:
         ct.barriers.append(None)
