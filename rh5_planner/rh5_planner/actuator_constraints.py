@@ -32,7 +32,7 @@ from rh5_msgs_py.trajectory_file import NQ, TrajectoryData
 from .actuator_bounds import ACTUATOR_LIMIT_KINDS, ActuatorBounds, parallel_units
 from .interpolation import interpolate
 
-__all__ = ["LINEAR_ACTUATORS", "ActuatorCheck", "ActuatorConstraints", "actuator_usage"]
+__all__ = ["LINEAR_ACTUATORS", "ActuatorCheck", "ActuatorConstraints", "actuator_usage", "check_trajectory"]
 
 FloatArray = npt.NDArray[np.float64]
 LINEAR_ACTUATORS: Final[tuple[str, ...]] = tuple(a for m in parallel_units() for a in m.actuators)
@@ -99,6 +99,29 @@ class ActuatorCheck:
                 "1khz": [LINEAR_ACTUATORS[int(np.argmax(s))], round(float(s.max()), 4)],
             }
         return out
+
+
+def check_trajectory(
+    data: TrajectoryData,
+    kinds: Sequence[str] = ACTUATOR_LIMIT_KINDS,
+    factors: Mapping[str, FloatArray] | None = None,
+    tolerance: float = 1e-3,
+) -> ActuatorCheck:
+    """Exact utilisation of the 14 linear actuators at the knots of ``data`` and along its 1 kHz interpolation
+    (:func:`rh5_planner.interpolation.interpolate`, what the planner publishes); what exceeds 1 + ``tolerance``."""
+    q, v = data.joint_positions(), data.joint_velocities()
+    knots = actuator_usage(q, v, np.asarray(data.controls), factors)
+    fine = interpolate(data)
+    samples = actuator_usage(fine.states[:, 7:NQ], fine.states[:, NQ + 6 :], fine.controls, factors)
+    segment = np.clip(np.searchsorted(data.times, fine.times + 1e-9, side="right") - 1, 0, len(data.times) - 1)
+    over: list[tuple[str, int, str, float]] = []
+    for kind in kinds:
+        for usage, rows in ((knots[kind], np.arange(len(knots[kind]))), (samples[kind], segment)):
+            hit = np.argwhere(usage > 1.0 + tolerance)
+            over.extend((kind, int(rows[r]), LINEAR_ACTUATORS[a], float(usage[r, a])) for r, a in hit)
+    peak_k = {k: knots[k].max(axis=0) for k in kinds}
+    peak_s = {k: samples[k].max(axis=0) for k in kinds}
+    return ActuatorCheck(peak_k, peak_s, tuple(over))
 
 
 class ActuatorConstraints:
@@ -178,23 +201,8 @@ class ActuatorConstraints:
         self.refreshes += 1
 
     def check(self, data: TrajectoryData, tolerance: float = 1e-3) -> ActuatorCheck:
-        """Exact utilisation at the knots of ``data`` and at 1 kHz; what exceeds 1 + ``tolerance``."""
-        factors = self.bounds.factors
-        q, v = data.joint_positions(), data.joint_velocities()
-        knots = actuator_usage(q, v, np.asarray(data.controls), factors)
-        fine = interpolate(data)
-        fq, fv = fine.states[:, 7:NQ], fine.states[:, NQ + 6 :]
-        ftau = fine.controls[: len(fine.times)]
-        samples = actuator_usage(fq, fv, ftau, factors)
-        segment = np.clip(np.searchsorted(data.times, fine.times + 1e-9, side="right") - 1, 0, len(data.times) - 1)
-        over: list[tuple[str, int, str, float]] = []
-        for kind in self.kinds:
-            for usage, rows in ((knots[kind], np.arange(len(knots[kind]))), (samples[kind], segment)):
-                hit = np.argwhere(usage > 1.0 + tolerance)
-                over.extend((kind, int(rows[r]), LINEAR_ACTUATORS[a], float(usage[r, a])) for r, a in hit)
-        peak_k = {k: knots[k].max(axis=0) for k in self.kinds}
-        peak_s = {k: samples[k].max(axis=0) for k in self.kinds}
-        return ActuatorCheck(peak_k, peak_s, tuple(over))
+        """Exact utilisation at the knots of ``data`` and at 1 kHz against the limits planned with."""
+        return check_trajectory(data, self.kinds, self.bounds.factors, tolerance)
 
     def tighten_from(self, check: ActuatorCheck, margin: float = 0.97) -> int:
         """Lower the bounds of every (kind, unit) over its limit, at the node of its knot and the next one, by
