@@ -295,9 +295,11 @@ def test_heuristic_reports_failure_and_nominal_success() -> None:
 
 
 def test_scaled_limits_reach_the_built_problem() -> None:
-    """A LimitScale reaches the planner: joint-limit bounds and the Box-FDDP torque box of the built problem."""
+    """A LimitScale reaches the planner: joint-limit bounds and the Box-FDDP torque box of the built problem (on the
+    paper's cost set: with the actuator limits the torso's torque box is its actuators' force bound, which scales
+    with the same factor)."""
     scale = LimitScale((("knee", "velocity", 3.0), ("BodyPitch", "torque", 2.0), ("knee", "position", 2.0)))
-    motion = get_motion("squat_with_5kg_weights", SHORT_SQUAT)
+    motion = get_motion("squat_with_5kg_weights", {**SHORT_SQUAT, "actuator_limits": False})
     nominal = problem.build_problem(motion)
     scaled = problem.build_problem(motion, limit_scale=scale)
     vi = v_index(nominal.robot.model) - 6
@@ -310,6 +312,12 @@ def test_scaled_limits_reach_the_built_problem() -> None:
     mid = 0.5 * (nominal.robot.q_lower + nominal.robot.q_upper)
     factor = np.where(np.isin(np.arange(32), knees), 2, 1)
     np.testing.assert_allclose(scaled.robot.q_upper - mid, factor * (nominal.robot.q_upper - mid))
+    # actuator limits: the torso's force bound (a "torque" factor) doubles, below the doubled joint torque limit
+    with_actuators = get_motion("squat_with_5kg_weights", SHORT_SQUAT)
+    box = problem.build_problem(with_actuators).problem.runningModels[0].u_ub[body]
+    scaled_box = problem.build_problem(with_actuators, limit_scale=scale).problem.runningModels[0].u_ub[body]
+    assert box < tmax("BodyPitch")
+    assert scaled_box == pytest.approx(2 * box)
 
 
 # --------------------------------------------------------------------------------------------------
