@@ -111,7 +111,7 @@ def check_trajectory(
     (:func:`rh5_planner.interpolation.interpolate`, what the planner publishes); what exceeds 1 + ``tolerance``."""
     q, v = data.joint_positions(), data.joint_velocities()
     knots = actuator_usage(q, v, np.asarray(data.controls), factors)
-    fine = interpolate(data)
+    fine = interpolate(data, joints_only=True)
     samples = actuator_usage(fine.states[:, 7:NQ], fine.states[:, NQ + 6 :], fine.controls, factors)
     segment = np.clip(np.searchsorted(data.times, fine.times + 1e-9, side="right") - 1, 0, len(data.times) - 1)
     over: list[tuple[str, int, str, float]] = []
@@ -203,6 +203,30 @@ class ActuatorConstraints:
     def check(self, data: TrajectoryData, tolerance: float = 1e-3) -> ActuatorCheck:
         """Exact utilisation at the knots of ``data`` and at 1 kHz against the limits planned with."""
         return check_trajectory(data, self.kinds, self.bounds.factors, tolerance)
+
+    def check_iterate(
+        self, xs: Sequence[FloatArray], us: Sequence[FloatArray], dt: float, tolerance: float = 1e-3
+    ) -> ActuatorCheck:
+        """:meth:`check` of the solver's iterate itself (the kept nodes as knots ``dt`` apart, joints only, no
+        contact data): what the trajectory file will hold, without a pass over the problem to extract it."""
+        q, v, tau = self._joint_arrays(xs, us)
+        kept = np.asarray(self.kept)
+        n = kept.size
+        states = np.zeros((n, NQ + 6 + NUM_JOINTS))
+        states[:, 6] = 1.0  # identity base orientation: the joints alone are checked
+        states[:, 7:NQ] = q[kept]
+        states[:, NQ + 6 :] = v[kept]
+        data = TrajectoryData(
+            times=dt * np.arange(n),
+            states=states,
+            controls=tau[kept[:-1]],
+            contact_wrenches=np.zeros((n, 2, 6)),
+            contact_phases=np.zeros((n, 2), dtype=bool),
+            cop=np.full((n, 2, 2), np.nan),
+            motion={"name": "check"},
+            model_hash="check",
+        )
+        return self.check(data, tolerance)
 
     def tighten_from(self, check: ActuatorCheck, margin: float = 0.97) -> int:
         """Lower the bounds of every (kind, unit) over its limit, at the node of its knot and the next one, by

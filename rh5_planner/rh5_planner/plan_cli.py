@@ -263,7 +263,7 @@ def _factors(text: str) -> tuple[float, ...]:
 
 
 def _design(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
-    from .design import DesignStep, improve_design, parse_limit  # noqa: PLC0415
+    from .design import DesignStep, improve_design, jump_height_task, parse_limit  # noqa: PLC0415
 
     motion = _motion(args.design, parse_overrides(args.set))
     try:
@@ -277,7 +277,20 @@ def _design(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
         bar.finish(step.describe())
         bar.restart()
 
-    result = improve_design(motion, limits, factors=factors, settings=_settings(args, bar), on_step=on_step)
+    from .limit_analysis import ACTUATOR_KINDS, JOINT_KINDS  # noqa: PLC0415
+
+    # planned with the actuator limits (--set actuator_limits=true): a feasible scaling must hold them too, and is
+    # reported as an actuator specification beside the joint-space factor
+    required = (*JOINT_KINDS, *ACTUATOR_KINDS) if motion.actuator_limits else JOINT_KINDS
+    result = improve_design(
+        motion,
+        limits,
+        factors=factors,
+        settings=_settings(args, bar),
+        required=required,
+        on_step=on_step,
+        task=jump_height_task() if motion.kind == "jump" else None,
+    )
     out.write(result.report() + "\n")
     return 0 if result.feasible else EXIT_NOT_CONVERGED
 

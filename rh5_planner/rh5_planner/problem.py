@@ -18,6 +18,13 @@ Our own builders on Crocoddyl's public API (crocoddyl.utils.biped is not API and
   torque regularisation (``ResidualModelControl``).
 * Torque limits are the hard box of Box-FDDP: every action model's ``u_lb``/``u_ub`` are
   -/+ ``joint_limits().torque_max`` (the upper ends of the paper's configuration-dependent ranges).
+* Actuator limits (motions with ``actuator_limits``; costs.yaml ``actuator_limits``): the linear actuators' stroke,
+  velocity and force (Table I) through the parallel mechanisms' exact maps, as per-knot joint boxes built at the
+  current iterate (:mod:`rh5_planner.actuator_bounds`) and written into the joint-limit barrier's bounds (stroke,
+  velocity) and each knot's Box-FDDP box (force) before every continuation stage
+  (:mod:`rh5_planner.actuator_constraints`); Crocoddyl's per-knot work stays its own C++. After the final stage an
+  exact check at the knots and along the 1 kHz interpolation tightens the bounds where a limit is still exceeded
+  and solves again; the solver log's ``actuator_limits`` says what was enforced and the peaks reached.
 * Payload: ``motion.payload_kg_per_hand`` is added as a point mass at each hand TCP (``AL_TCP``/``AR_TCP``) to
   the inertia of the link carrying the TCP (pinocchio ``Inertia(m, c, 0)`` with c the TCP position in that
   joint's frame). The 5 kg bars of the paper become 2 x 5 kg at the grasp point.
@@ -1066,7 +1073,8 @@ def _refine_actuator_limits(
     assert actuators is not None
     settings_al = config["actuator_limits"]
     rounds, extra = [], 0
-    check = actuators.check(_extract(built, solver, {}).to_trajectory_data())
+    dt = built.motion.dt
+    check = actuators.check_iterate(solver.xs, solver.us, dt)
     for _ in range(int(settings_al.get("refine_rounds", 0))):
         if check.ok:
             break
@@ -1083,7 +1091,7 @@ def _refine_actuator_limits(
         solved = solved or monitor.stalled
         extra += monitor.iterations
         rounds.append({"violations": len(check.over), "bounds_tightened": changed, "iterations": monitor.iterations})
-        check = actuators.check(_extract(built, solver, {}).to_trajectory_data())
+        check = actuators.check_iterate(solver.xs, solver.us, dt)
     log = {
         "enforced": list(actuators.kinds),
         "mechanisms": [unit.model.name for unit in actuators.bounds.units],
