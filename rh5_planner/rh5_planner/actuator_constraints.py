@@ -105,7 +105,7 @@ def check_trajectory(
     data: TrajectoryData,
     kinds: Sequence[str] = ACTUATOR_LIMIT_KINDS,
     factors: Mapping[str, FloatArray] | None = None,
-    tolerance: float = 1e-3,
+    tolerance: float = 1e-6,
 ) -> ActuatorCheck:
     """Exact utilisation of the 14 linear actuators at the knots of ``data`` and along its 1 kHz interpolation
     (:func:`rh5_planner.interpolation.interpolate`, what the planner publishes); what exceeds 1 + ``tolerance``."""
@@ -200,12 +200,12 @@ class ActuatorConstraints:
             model.u_ub = limit
         self.refreshes += 1
 
-    def check(self, data: TrajectoryData, tolerance: float = 1e-3) -> ActuatorCheck:
+    def check(self, data: TrajectoryData, tolerance: float = 1e-6) -> ActuatorCheck:
         """Exact utilisation at the knots of ``data`` and at 1 kHz against the limits planned with."""
         return check_trajectory(data, self.kinds, self.bounds.factors, tolerance)
 
     def check_iterate(
-        self, xs: Sequence[FloatArray], us: Sequence[FloatArray], dt: float, tolerance: float = 1e-3
+        self, xs: Sequence[FloatArray], us: Sequence[FloatArray], dt: float, tolerance: float = 1e-6
     ) -> ActuatorCheck:
         """:meth:`check` of the solver's iterate itself (the kept nodes as knots ``dt`` apart, joints only, no
         contact data): what the trajectory file will hold, without a pass over the problem to extract it."""
