@@ -17,6 +17,7 @@ re-solve.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Final
@@ -157,6 +158,8 @@ class ActuatorConstraints:
         self.kept = list(kept)
         self.nq = nq
         self.refreshes = 0
+        self.overhead_s = 0.0
+        """CPU time spent here (refreshes and checks): the Python part of the actuator limits."""
 
     @property
     def kinds(self) -> tuple[str, ...]:
@@ -177,6 +180,7 @@ class ActuatorConstraints:
 
     def refresh(self, xs: Sequence[FloatArray], us: Sequence[FloatArray]) -> None:
         """Rebuild every node's bounds at the iterate (xs, us) and write them into the problem's models."""
+        start = time.process_time()
         q, v, tau = self._joint_arrays(xs, us)
         boxes = self.bounds.boxes(q, v, tau)
         nq_t = self.nq - 1  # tangent rows of the configuration (free flyer: 6 for 7)
@@ -199,6 +203,7 @@ class ActuatorConstraints:
             model.u_lb = -limit
             model.u_ub = limit
         self.refreshes += 1
+        self.overhead_s += time.process_time() - start
 
     def check(self, data: TrajectoryData, tolerance: float = 1e-6) -> ActuatorCheck:
         """Exact utilisation at the knots of ``data`` and at 1 kHz against the limits planned with."""
@@ -209,6 +214,7 @@ class ActuatorConstraints:
     ) -> ActuatorCheck:
         """:meth:`check` of the solver's iterate itself (the kept nodes as knots ``dt`` apart, joints only, no
         contact data): what the trajectory file will hold, without a pass over the problem to extract it."""
+        start = time.process_time()
         q, v, tau = self._joint_arrays(xs, us)
         kept = np.asarray(self.kept)
         n = kept.size
@@ -226,7 +232,9 @@ class ActuatorConstraints:
             motion={"name": "check"},
             model_hash="check",
         )
-        return self.check(data, tolerance)
+        check = self.check(data, tolerance)
+        self.overhead_s += time.process_time() - start
+        return check
 
     def tighten_from(self, check: ActuatorCheck, margin: float = 0.97) -> int:
         """Lower the bounds of every (kind, unit) over its limit, at the node of its knot and the next one, by

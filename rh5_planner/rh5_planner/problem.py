@@ -989,7 +989,7 @@ def solve(
     base = [{name: float(item.weight) for name, item in costs.costs.todict().items()} for costs in sums]
     xs, us, feasible = built.xs_guess, built.us_guess, False
     iterations, stage_log = 0, []
-    t_solve = time.perf_counter()
+    t_solve, cpu_solve = time.perf_counter(), time.process_time()
     for k, stage in enumerate(stages):
         final = k == len(stages) - 1
         _scale_costs(sums, base, stage.get("scale", {}))
@@ -1020,6 +1020,7 @@ def solve(
         )
         iterations += extra
     solve_time = time.perf_counter() - t_solve
+    solve_cpu = time.process_time() - cpu_solve
     solver.th_stop = settings.stop_threshold
     knots = len(built.specs)
     converged = solved and bool(solver.isFeasible)
@@ -1035,6 +1036,9 @@ def solve(
         "build_time_s": build_time,
         "knots": knots,
         "ms_per_knot_iteration": 1e3 * solve_time / max(1, knots * max(1, iterations)),
+        # CPU time of this process (all its threads): robust where other processes share the cores
+        "solve_cpu_s": solve_cpu,
+        "cpu_ms_per_knot_iteration": 1e3 * solve_cpu / max(1, knots * max(1, iterations)),
         "stop_reason": ("gradient" if float(solver.stop) < settings.stop_threshold else "cost_stalled")
         if converged
         else "iteration_limit",
@@ -1097,6 +1101,7 @@ def _refine_actuator_limits(
         "mechanisms": [unit.model.name for unit in actuators.bounds.units],
         "form": "per-knot joint boxes at the iterate: joint-limit barrier (stroke, velocity), Box-FDDP box (force)",
         "refreshes": actuators.refreshes,
+        "python_cpu_s": round(actuators.overhead_s, 4),
         "refine_rounds": rounds,
         "within_limits": check.ok,
         "violations_left": len(check.over),

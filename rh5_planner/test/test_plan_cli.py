@@ -33,7 +33,7 @@ def test_plan_writes_file_plots_table_and_shows_progress(tmp_path: Path) -> None
     data = load_trajectory(tmp_path / f"{name}.rh5traj", expected_model_hash=model_hash())
     assert data.motion["parameters"]["total_time_s"] == 0.6
     assert data.solver_log["converged"]
-    for png in (f"{name}_cop.png", f"{name}_joints.png"):
+    for png in (f"{name}_cop.png", f"{name}_joints.png", f"{name}_actuators.png"):
         assert (tmp_path / png).read_bytes()[:4] == b"\x89PNG"
     table = (tmp_path / f"{name}_limits.md").read_text(encoding="utf-8")
     assert "| Motion | Conv. | Pos. Lim." in table
