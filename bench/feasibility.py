@@ -6,8 +6,9 @@ Run: ``.venv/bin/python bench/feasibility.py [--motions a,b] [--max-iterations 2
 [--design-motion vertical_jump_10cm] [--design-space actuator|joint] [--scale knee:velocity ...]
 [--factors 1,1.5,2,3,4,5,6] [--output FILE]``.
 
-Solves every motion twice (Box-FDDP, progress on stderr): with the paper's cost set (``actuator_limits: false``,
-the paper's table reproduced) and with the actuator limits (Table I stroke, velocity, force through the parallel
+Solves every motion twice (Box-FDDP, progress on stderr): with the paper's cost set (``actuator_limits: false``;
+the fast walk with the paper's own parameters, rh5_planner.motions.PAPER_SETTINGS: the paper's table reproduced)
+and with the actuator limits (Table I stroke, velocity, force through the parallel
 mechanisms; issue 14). Prints both feasibility tables (Markdown, our actuator-space columns beside the paper's
 three), compares the paper's columns cell by cell (rh5_planner.limit_analysis.PAPER_FEASIBILITY), then runs the
 heuristic (default: in actuator space, i.e. planned with the actuator limits and required to hold them; scaling
@@ -28,7 +29,7 @@ import crocoddyl  # noqa: F401  (before pinocchio, design/crocoddyl_wheels.md)
 
 from rh5_planner.design import improve_design, jump_height_task, parse_limit
 from rh5_planner.limit_analysis import ACTUATOR_KINDS, JOINT_KINDS, FeasibilityTable, LimitAnalysis, analyse
-from rh5_planner.motions import MOTIONS, get_motion
+from rh5_planner.motions import MOTIONS, PAPER_SETTINGS, get_motion
 from rh5_planner.plan_cli import PAPER_MOTIONS, ProgressBar
 from rh5_planner.problem import SolverSettings, solve
 
@@ -62,7 +63,8 @@ def main() -> None:
         for name in names:
             solver_settings, bar = settings(f"{name}{' +act' if limited else ''}")
             start = time.perf_counter()
-            result = solve(get_motion(name, {"actuator_limits": limited}), solver_settings)
+            overrides = {"actuator_limits": True} if limited else PAPER_SETTINGS.get(name, {"actuator_limits": False})
+            result = solve(get_motion(name, overrides), solver_settings)
             log = result.solver_log
             bar.finish("converged" if result.converged else "NOT converged")
             analyses.append(analyse(result))
