@@ -24,7 +24,7 @@ from rh5_msgs_py.names import FOOT_FRAMES
 from rh5_msgs_py.trajectory_file import NQ, load_trajectory
 from rh5_planner.actuator_constraints import check_trajectory
 from rh5_planner.interpolation import euler_tangents, interpolate
-from rh5_planner.motions import MOTIONS, MotionError, get_motion
+from rh5_planner.motions import MOTIONS, PAPER_SETTINGS, MotionError, get_motion
 from rh5_planner.problem import (
     FOOT_SIZE_M,
     PlanResult,
@@ -295,6 +295,18 @@ def test_interpolation_hits_knots_and_matches_velocities(walk: PlanResult) -> No
     np.testing.assert_array_equal(samples.controls[inside], np.broadcast_to(data.controls[k], (inside.sum(), 32)))
     norms = np.linalg.norm(samples.states[:, 3:7], axis=1)
     np.testing.assert_allclose(norms, 1.0, atol=1e-12)
+
+
+def test_walk_step_ramp_and_the_papers_fast_walk() -> None:
+    """ramp_steps grows and shrinks the first and last steps around equal cruise steps; without it the landings
+    are the old equal fractions. PAPER_SETTINGS gives back the paper's 0.7 m / 0.7 s fast walk (23 knots)."""
+    fast = get_motion("fast_walk_1m_s")
+    steps = np.diff(np.r_[0.0, fast.landings()[:-1]])  # type: ignore[attr-defined]
+    np.testing.assert_allclose(steps / steps.max(), [1 / 3, 2 / 3, 1, 1, 1, 1, 1, 2 / 3, 1 / 3])
+    assert fast.cruise_speed_m_s == pytest.approx(1.03, abs=0.01)  # type: ignore[attr-defined]
+    np.testing.assert_allclose(WALK.landings(), [1 / 3, 2 / 3, 1, 1])  # type: ignore[attr-defined]
+    paper = get_motion("fast_walk_1m_s", PAPER_SETTINGS["fast_walk_1m_s"])
+    assert (paper.n_knots, paper.swing_knots, paper.actuator_limits) == (23, 5, False)  # type: ignore[attr-defined]
 
 
 def test_motion_library_overrides() -> None:
