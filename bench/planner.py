@@ -16,6 +16,10 @@ Crocoddyl's cost per knot-iteration grows with the horizon on this machine: the 
 27 knots, ~0.43 ms at 55 and ~0.58-0.63 ms at 270 (its derivative pass per knot is ~45 % dearer at 110 knots than
 at 55, likely the knot data outgrowing the caches). So the ``@T`` columns also solve the Talos walk discretised into
 as many knots as the motion (same 0.6 m gait, dt scaled; median of three solves) and print the ratio to that.
+
+Motions planned with the actuator limits (issue 14) are also solved without them, interleaved, and a second table
+prints ms per knot-iteration on / off (target <= 1.3) and the peak actuator utilisation (stroke/velocity/force, knots
+and 1 kHz) of both plans; ``--no-on-off`` skips those solves.
 """
 
 from __future__ import annotations
@@ -31,6 +35,8 @@ from typing import Any
 import crocoddyl  # before pinocchio (design/crocoddyl_wheels.md)
 import numpy as np
 
+from rh5_planner.actuator_bounds import ACTUATOR_LIMIT_KINDS
+from rh5_planner.actuator_constraints import check_trajectory
 from rh5_planner.motions import MOTIONS, get_motion
 from rh5_planner.problem import CONTACT_STABILITY_FORMS, PlanResult, SolverSettings, load_cost_config, solve
 
@@ -93,6 +99,9 @@ def main() -> None:
         "--no-matched", action="store_true", help="skip the Talos walks with each motion's knot count (@T columns)"
     )
     parser.add_argument(
+        "--no-on-off", action="store_true", help="skip the solves with the actuator limits off (on/off ratio)"
+    )
+    parser.add_argument(
         "--plot", default="out/bench/planner.png", help="figure: ms per knot-iteration over knots, ours and Talos's"
     )
     args = parser.parse_args()
@@ -133,11 +142,20 @@ def main() -> None:
     )
     print(f"{'motion':26s} " + " ".join(f"{c:>{w}s}" for c, w in columns) + "  limits (joints over: position/velocity)")
     walk_median, total, ratios, matched_ratios = None, 0.0, [], []
+    on_off: list[str] = []  # rows of the actuator-limits table
+    on_off_ratios: list[float] = []
     ours: list[tuple[str, int, float]] = []  # (motion, knots, ms per knot-iteration) for the figure
     matched: dict[int, tuple[int, float]] = {}  # motion knots -> (reference knots, median ms/knot-iteration)
     for name in names:
         repeat = args.walk_repeat if name == "walk_with_5kg_weights" else args.repeat
-        results = [solve(get_motion(name), settings) for _ in range(max(1, repeat))]
+        motion = get_motion(name)
+        results, paper = [], []
+        for _ in range(max(1, repeat)):  # with the actuator limits on, the same motion without them interleaved
+            results.append(solve(motion, settings))
+            if motion.actuator_limits and not args.no_on_off:
+                paper.append(solve(motion.with_overrides({"actuator_limits": False}), settings))
+        if paper:
+            on_off_ratios.append(_on_off_row(name, results, paper, on_off))
         logs = [r.solver_log for r in results]
         times = [log["solve_time_s"] for log in logs]
         ms = statistics.median(log["ms_per_knot_iteration"] for log in logs)
@@ -170,6 +188,19 @@ def main() -> None:
     if walk_median is not None:
         verdict = "meets" if walk_median <= 2.0 else "misses"
         print(f"walk_with_5kg_weights median solve time {walk_median:.3f} s ({verdict} the 2 s target)")
+    if on_off:
+        print()
+        print("actuator limits (issue 14): the same motion with them on and off (paper's cost set), interleaved")
+        print(
+            f"{'motion':26s} {'it on':>5s} {'it off':>6s} {'ms/k-it on':>10s} {'off':>6s} {'ratio':>6s} "
+            f"{'cpu on':>7s} {'cpu off':>7s} {'ratio':>6s} {'s on':>6s} {'s off':>6s}  "
+            "peak actuator use on / off (stroke, velocity, force)"
+        )
+        print("\n".join(on_off))
+        print(
+            f"CPU ms per knot-iteration, actuator limits on / off: max {max(on_off_ratios):.2f}, "
+            f"median {statistics.median(on_off_ratios):.2f} (target <= 1.3; wall-clock columns beside it)"
+        )
     references = sorted({(talos_runs[0]["knots"], talos_ms), *matched.values()})
     print(f"figure: {_horizon_figure(Path(args.plot), references, ours)}")
 
@@ -197,6 +228,28 @@ def _horizon_figure(path: Path, talos: Sequence[tuple[int, float]], ours: Sequen
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
     return path
+
+
+def _on_off_row(name: str, on: Sequence[PlanResult], off: Sequence[PlanResult], rows: list[str]) -> float:
+    """Append the table row of one motion solved with the actuator limits on and off; return the ratio of the
+    median ms per knot-iteration (on / off)."""
+    ms_on = statistics.median(r.solver_log["ms_per_knot_iteration"] for r in on)
+    ms_off = statistics.median(r.solver_log["ms_per_knot_iteration"] for r in off)
+    cpu_on = statistics.median(r.solver_log["cpu_ms_per_knot_iteration"] for r in on)
+    cpu_off = statistics.median(r.solver_log["cpu_ms_per_knot_iteration"] for r in off)
+    s_on = statistics.median(r.solver_log["solve_time_s"] for r in on)
+    s_off = statistics.median(r.solver_log["solve_time_s"] for r in off)
+
+    def peaks(plan: PlanResult) -> str:
+        check = check_trajectory(plan.to_trajectory_data())
+        return "/".join(f"{max(check.knots[k].max(), check.samples[k].max()):.2f}" for k in ACTUATOR_LIMIT_KINDS)
+
+    rows.append(
+        f"{name:26s} {on[0].solver_log['iterations']:5d} {off[0].solver_log['iterations']:6d} {ms_on:10.3f} "
+        f"{ms_off:6.3f} {ms_on / ms_off:6.2f} {cpu_on:7.3f} {cpu_off:7.3f} {cpu_on / cpu_off:6.2f} {s_on:6.2f} "
+        f"{s_off:6.2f}  {peaks(on[0])} / {peaks(off[0])}"
+    )
+    return cpu_on / cpu_off
 
 
 def _violations(plan: PlanResult) -> str:

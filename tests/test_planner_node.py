@@ -210,8 +210,8 @@ def test_bad_motion_overrides_are_refused_with_the_reason(planner: Observer, ove
 
 
 def test_unconverged_plan_is_saved_but_not_published(planner: Observer) -> None:
-    """One iteration of the fast walk (not verified): refused as not converged, file kept, nothing published."""
-    planner.set_string("motion", "fast_walk_1m_s")
+    """One iteration of the 10 cm jump (not verified): refused as not converged, file kept, nothing published."""
+    planner.set_string("motion", "vertical_jump_10cm")
     planner.set_int("max_iterations", 1)
     planner.reset()
     try:
@@ -222,7 +222,7 @@ def test_unconverged_plan_is_saved_but_not_published(planner: Observer) -> None:
     assert not ok
     assert message.startswith("not converged: "), message
     summary = json.loads(message.removeprefix("not converged: "))
-    assert summary["motion"] == "fast_walk_1m_s"
+    assert summary["motion"] == "vertical_jump_10cm"
     assert summary["verified"] is False
     assert summary["converged"] is False
     assert 1 <= summary["iterations"] <= STAGES  # the cap holds per continuation stage of the wrench cone

@@ -16,10 +16,21 @@ import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Final
+from typing import Any, Final
+
+import numpy as np
 
 from . import problem
-from .limit_analysis import JOINT_KINDS, LimitAnalysis, LimitScale, analyse, side_free_name
+from .actuator_bounds import parallel_units
+from .limit_analysis import (
+    ACTUATOR_KINDS,
+    JOINT_KINDS,
+    LimitAnalysis,
+    LimitScale,
+    analyse,
+    match_joints,
+    side_free_name,
+)
 from .motions import MotionSpec
 from .problem import PlanResult, SolverSettings
 
@@ -27,9 +38,13 @@ __all__ = [
     "DEFAULT_FACTORS",
     "DesignResult",
     "DesignStep",
+    "actuator_specs",
+    "binding_limits",
     "critical_limits",
     "improve_design",
+    "jump_height_task",
     "parse_limit",
+    "sole_clearance",
     "solve_with_limits",
 ]
 
@@ -37,6 +52,11 @@ DEFAULT_FACTORS: Final = (1.0, 1.5, 2.0, 3.0, 4.0)
 """Scale factors tried in turn (the paper's result, knee velocity x3, is one of them)."""
 
 SolveFunction = Callable[[MotionSpec, LimitScale, SolverSettings], PlanResult]
+TaskCheck = Callable[[PlanResult], tuple[bool, str]]
+"""Whether a plan does what the motion asks (e.g. the jump's height), and a short text saying how far it got."""
+BINDING: Final = 0.85
+"""Utilisation from which a limit counts as binding: where a plan holds every limit but misses its task, the
+heuristic scales the limits it presses against (the actuator limits are bounded at 0.9-0.97 of Table I)."""
 StepCallback = Callable[["DesignStep"], None]
 
 
@@ -75,14 +95,17 @@ class DesignStep:
     iterations: int
     seconds: float
     analysis: LimitAnalysis
+    task: str = ""
+    """What the task check said (empty without one), e.g. ``soles 9.7 of 10.0 cm up``."""
 
     def describe(self) -> str:
         """One line: limits, verdict, violations."""
         verdict = "feasible" if self.feasible else ("infeasible" if self.converged else "not converged")
         viol = "; ".join(f"{k}: {', '.join(v)}" for k, v in self.violations.items()) or "none"
+        task = f"; task: {self.task}" if self.task else ""
         return (
             f"{self.scale.describe()}: {verdict} ({self.iterations} iterations, {self.seconds:.1f} s); "
-            f"violations: {viol}"
+            f"violations: {viol}{task}"
         )
 
 
@@ -122,13 +145,22 @@ class DesignResult:
             lines.append("Result: feasible with the nominal limits (no design change needed).")
         else:
             needed = ", ".join(f"{p} {k} x{f:g}" for p, k, f in self.scaled_limits())
-            lines.append(f"Result: feasible after scaling {needed}.")
+            lines.append(f"Result: feasible after scaling {needed} (joint space, the paper's form).")
+            specs = actuator_specs(self.scaled_limits())
+            if specs:
+                lines.append(f"Actuator specification (Table I): {'; '.join(specs)}.")
         return "\n".join(lines)
 
 
+_JOINT_KIND_OF_ACTUATOR: Final = {"stroke": "position", "actuator_velocity": "velocity", "force": "torque"}
+_UNIT_TEXT: Final = {"position": ("stroke", "mm", 1e3), "velocity": ("", "mm/s", 1e3), "torque": ("", "N", 1.0)}
+
+
 def critical_limits(analysis: LimitAnalysis, required: Sequence[str] = JOINT_KINDS) -> tuple[tuple[str, str], ...]:
-    """The (pattern, kind) the solution violates, of the joint-space kinds in ``required``; a symmetric pair of
-    joints becomes one pattern (``LLKnee``, ``LRKnee`` -> ``Knee``) so both sides scale together."""
+    """The (pattern, kind) the solution violates, of the kinds in ``required``; a symmetric pair of joints becomes one
+    pattern (``LLKnee``, ``LRKnee`` -> ``Knee``) so both sides scale together. A violated actuator kind (stroke,
+    actuator_velocity, force) names the joints of its mechanism with the matching joint kind (position, velocity,
+    torque): their factor scales the mechanism's actuators (LimitScale.actuator_factors)."""
     out: list[tuple[str, str]] = []
     for kind in JOINT_KINDS:
         if kind not in required:
@@ -137,7 +169,104 @@ def critical_limits(analysis: LimitAnalysis, required: Sequence[str] = JOINT_KIN
             entry = (side_free_name(joint), kind)
             if entry not in out:
                 out.append(entry)
+    units = {a: m for m in parallel_units() for a in m.actuators}
+    for kind in ACTUATOR_KINDS:
+        if kind not in required or analysis.actuator is None:
+            continue
+        for actuator in analysis.actuator[kind].violating:
+            unit = units.get(actuator)
+            joints = unit.joints if unit is not None else ()
+            for joint in joints:
+                entry = (side_free_name(joint), _JOINT_KIND_OF_ACTUATOR[kind])
+                if entry not in out:
+                    out.append(entry)
     return tuple(out)
+
+
+def binding_limits(
+    analysis: LimitAnalysis, required: Sequence[str] = JOINT_KINDS, threshold: float = BINDING
+) -> tuple[tuple[str, str], ...]:
+    """As :func:`critical_limits`, for the limits used to at least ``threshold`` instead of exceeded."""
+    loose = dataclasses.replace(
+        analysis,
+        joint={k: dataclasses.replace(u, utilisation=u.utilisation / threshold) for k, u in analysis.joint.items()},
+        actuator=None
+        if analysis.actuator is None
+        else {k: dataclasses.replace(u, utilisation=u.utilisation / threshold) for k, u in analysis.actuator.items()},
+    )
+    return critical_limits(loose, required)
+
+
+def jump_height_task(fraction: float = 0.9) -> TaskCheck:
+    """The task of a jump: its soles clear at least ``fraction`` of ``height_m`` in flight."""
+
+    def check(plan: PlanResult) -> tuple[bool, str]:
+        height = float(getattr(plan.motion, "height_m", 0.0))
+        clearance = sole_clearance(plan)
+        return clearance >= fraction * height, f"soles {100 * clearance:.1f} of {100 * height:.1f} cm up"
+
+    return check
+
+
+def sole_clearance(plan: PlanResult) -> float:
+    """Highest sole height over the knots without contact, above the initial soles [m] (0 without flight)."""
+    import pinocchio as pin  # noqa: PLC0415
+
+    model = plan.robot.model
+    data = model.createData()
+    flight = ~np.asarray(plan.contact_phases).any(axis=1)
+    if not flight.any():
+        return 0.0
+    heights = []
+    for x in np.asarray(plan.xs)[[*np.flatnonzero(flight).tolist(), 0]]:
+        pin.framesForwardKinematics(model, data, x[: model.nq])
+        heights.append(max(data.oMf[fid].translation[2] for fid in plan.robot.foot_ids.values()))
+    return float(max(heights[:-1]) - heights[-1])
+
+
+def actuator_specs(entries: Sequence[tuple[str, str, float]]) -> list[str]:
+    """What scaled joint limits (pattern, kind, factor) ask of the linear actuators (Table I), one text per actuator
+    type: ``Knee actuator (LLKnee_Act1, LRKnee_Act1) 140 -> 420 mm/s``. A mechanism scales by the largest factor of
+    its joints (LimitScale.actuator_factors); joints without a linear actuator give nothing."""
+    factor_of: dict[str, dict[str, float]] = {}
+    for pattern, kind, factor in entries:
+        for joint in match_joints(pattern):
+            slot = factor_of.setdefault(kind, {})
+            slot[joint] = factor
+    out: list[str] = []
+    for kind, per_joint in factor_of.items():
+        groups: dict[str, tuple[list[str], float, float]] = {}
+        for unit in parallel_units():
+            factor = max((per_joint.get(j, 1.0) for j in unit.joints), default=1.0)
+            if factor == 1.0:
+                continue
+            label = _unit_label(unit.name)
+            names, _, limit = groups.get(label, ([], factor, _unit_limit(unit, kind)))
+            groups[label] = ([*names, *unit.actuators], factor, limit)
+        what, unit_text, to_text = _UNIT_TEXT[kind]
+        for label, (names, factor, limit) in groups.items():
+            if kind == "position":
+                lo, hi = limit
+                mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+                old = f"{lo * to_text:.0f}-{hi * to_text:.0f}"
+                new = f"{(mid - factor * half) * to_text:.0f}-{(mid + factor * half) * to_text:.0f}"
+            else:
+                old, new = f"{limit * to_text:.0f}", f"{limit * factor * to_text:.0f}"
+            prefix = f"{label} actuator{' ' + what if what else ''} ({', '.join(names)})"
+            out.append(f"{prefix} {old} -> {new} {unit_text} (x{factor:g})")
+    return out
+
+
+def _unit_label(name: str) -> str:
+    """A mechanism's name without its side (``LLKnee`` -> ``Knee``, ``ARWrist`` -> ``Wrist``)."""
+    return name[2:] if name[:2] in ("LL", "LR", "AL", "AR") and len(name) > 2 else name
+
+
+def _unit_limit(unit: Any, kind: str) -> Any:
+    limits = unit.limits
+    if kind == "position":
+        return (float(limits.length_min[0]), float(limits.length_max[0]))
+    return float(limits.velocity_max[0] if kind == "velocity" else limits.force_max[0])
 
 
 def improve_design(
@@ -150,6 +279,7 @@ def improve_design(
     minimise: bool = True,
     solve_function: SolveFunction = solve_with_limits,
     on_step: StepCallback | None = None,
+    task: TaskCheck | None = None,
 ) -> DesignResult:
     """Scale ``limits`` by ``factors`` in turn and re-plan until the solution is feasible.
 
@@ -158,7 +288,9 @@ def improve_design(
     the limit columns a feasible solution must hold (joint kinds, and optionally ``stroke``,
     ``actuator_velocity``, ``force``, ``cop``, ``friction``), always checked against the scaled limits.
     ``minimise`` lowers each limit back afterwards where feasibility allows. ``solve_function`` plans one
-    scaling (default :func:`solve_with_limits`; tests pass a stand-in).
+    scaling (default :func:`solve_with_limits`; tests pass a stand-in). ``task`` also requires the plan to do what
+    the motion asks (:func:`jump_height_task`); a plan that holds every limit but misses it scales the limits it
+    presses against (utilisation >= :data:`BINDING`).
     """
     settings = settings or SolverSettings()
     ordered = tuple(sorted({float(f) for f in factors}))
@@ -172,14 +304,16 @@ def improve_design(
         plan = solve_function(motion, scale, settings)
         analysis = analyse(plan, scale=scale)
         converged = bool(analysis.converged)
+        done, how = task(plan) if task is not None else (True, "")
         step = DesignStep(
             scale=scale,
             converged=converged,
-            feasible=converged and analysis.feasible(tuple(required)),
+            feasible=converged and done and analysis.feasible(tuple(required)),
             violations=analysis.violations(),
             iterations=int(plan.solver_log.get("iterations", 0)),
             seconds=time.perf_counter() - start,
             analysis=analysis,
+            task=how,
         )
         result_steps.append(step)
         if on_step is not None:
@@ -191,7 +325,7 @@ def improve_design(
         nominal = attempt(LimitScale())
         if nominal.feasible:
             return DesignResult(motion.name, (), ordered, tuple(required), result_steps, LimitScale())
-        chosen = critical_limits(nominal.analysis, required)
+        chosen = critical_limits(nominal.analysis, required) or binding_limits(nominal.analysis, required)
         candidates = [f for f in ordered if f != 1.0]
     else:
         chosen = tuple((str(p), str(k)) for p, k in limits)

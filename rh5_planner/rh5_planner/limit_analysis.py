@@ -272,6 +272,8 @@ class LimitAnalysis:
     contact: ContactCheck
     scale: LimitScale = field(default_factory=LimitScale)
     actuator_error: str = ""
+    actuator_limited: bool = False
+    """Whether the plan was made with the actuator limits in the problem (its solver log says which)."""
 
     def count(self, column: str) -> int | None:
         """The table entry of ``column`` (see :data:`COLUMNS`): 0 = holds; None = not available."""
@@ -415,7 +417,8 @@ def analyse(
     actuator, error = _actuator_usage(q, v, tau, scale, tolerance)
     contact = contact_check(data, cop_fraction=cop_fraction, mu=mu)
     name = str(data.motion.get("name", "?"))
-    return LimitAnalysis(name, converged, joint, actuator, contact, scale, error)
+    limited = bool((data.solver_log.get("actuator_limits") or {}).get("enforced"))
+    return LimitAnalysis(name, converged, joint, actuator, contact, scale, error, limited)
 
 
 def _actuator_usage(
@@ -511,7 +514,7 @@ class FeasibilityTable:
         out = []
         for a, (motion, cells) in zip(self.analyses, self.rows(), strict=True):
             conv = {True: "yes", False: "NO", None: "?"}[a.converged]
-            label = motion + (f" [{a.scale.describe()}]" if a.scale else "")
+            label = motion + (" +act" if a.actuator_limited else "") + (f" [{a.scale.describe()}]" if a.scale else "")
             out.append([label, conv, *cells])
         return out
 
@@ -561,5 +564,5 @@ class FeasibilityTable:
 _LEGEND: Final = (
     f"{_TICK}: the limit holds at every knot; {_CROSS}n: n joints (Pos./Torque/Vel., joint space) or n actuators "
     "(Act. *, parallel mechanisms and head) exceed it; CoP/Friction: foot-knots in contact outside the allowed "
-    "region; n/a: mapping to actuator space failed.\n"
+    "region; n/a: mapping to actuator space failed; +act: planned with the actuator limits in the problem.\n"
 )

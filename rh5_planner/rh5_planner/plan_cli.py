@@ -181,6 +181,8 @@ def _summary(result: PlanResult, analysis: LimitAnalysis, files: Sequence[Path])
         f"solver: {'converged' if result.converged else 'NOT converged'} after {log['iterations']} iterations, "
         f"cost {log['cost']:.6g}, stop {log['stop_criterion']:.2e}, solve {log['solve_time_s']:.2f} s",
         "",
+        _actuator_line(log),
+        "",
         FeasibilityTable([analysis]).to_text().rstrip(),
         "",
     ]
@@ -195,6 +197,20 @@ def _summary(result: PlanResult, analysis: LimitAnalysis, files: Sequence[Path])
     )
     lines += ["", "written:", *(f"  {p}" for p in files)]
     return "\n".join(lines)
+
+
+def _actuator_line(log: Any) -> str:
+    """The solver log's actuator limits in one line: what was enforced and the peak use at the knots and 1 kHz."""
+    entry = log.get("actuator_limits") or {}
+    if not entry.get("enforced"):
+        return "actuator limits: not in the problem (the paper's cost set; --set actuator_limits=true adds them)"
+    peaks = ", ".join(
+        f"{kind} {p['1khz'][0]} {100 * max(p['knots'][1], p['1khz'][1]):.0f} %"
+        for kind, p in entry.get("peak_utilisation", {}).items()
+    )
+    verdict = "within" if entry.get("within_limits") else f"{entry.get('violations_left')} samples over"
+    kinds = ", ".join(entry["enforced"])
+    return f"actuator limits: {kinds} enforced, {verdict} Table I at knots and 1 kHz (peaks: {peaks})"
 
 
 def _plan(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
@@ -212,11 +228,12 @@ def _plan(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
     table.write_text(analysis.to_markdown(), encoding="utf-8")
     files.append(table)
     if not args.no_plots:
-        from .plots import plot_cop, plot_joints  # noqa: PLC0415
+        from .plots import plot_actuators, plot_cop, plot_joints  # noqa: PLC0415
 
         fraction = float(load_cost_config()["contact_stability"]["cop_fraction"])
         files.append(plot_cop(data, output_dir / f"{motion.name}_cop.png", cop_fraction=fraction))
         files.append(plot_joints(data, output_dir / f"{motion.name}_joints.png"))
+        files.append(plot_actuators(data, output_dir / f"{motion.name}_actuators.png"))
     out.write(_summary(result, analysis, files) + "\n")
     return 0 if result.converged else EXIT_NOT_CONVERGED
 
@@ -263,7 +280,7 @@ def _factors(text: str) -> tuple[float, ...]:
 
 
 def _design(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
-    from .design import DesignStep, improve_design, parse_limit  # noqa: PLC0415
+    from .design import DesignStep, improve_design, jump_height_task, parse_limit  # noqa: PLC0415
 
     motion = _motion(args.design, parse_overrides(args.set))
     try:
@@ -277,7 +294,20 @@ def _design(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
         bar.finish(step.describe())
         bar.restart()
 
-    result = improve_design(motion, limits, factors=factors, settings=_settings(args, bar), on_step=on_step)
+    from .limit_analysis import ACTUATOR_KINDS, JOINT_KINDS  # noqa: PLC0415
+
+    # planned with the actuator limits (--set actuator_limits=true): a feasible scaling must hold them too, and is
+    # reported as an actuator specification beside the joint-space factor
+    required = (*JOINT_KINDS, *ACTUATOR_KINDS) if motion.actuator_limits else JOINT_KINDS
+    result = improve_design(
+        motion,
+        limits,
+        factors=factors,
+        settings=_settings(args, bar),
+        required=required,
+        on_step=on_step,
+        task=jump_height_task() if motion.kind == "jump" else None,
+    )
     out.write(result.report() + "\n")
     return 0 if result.feasible else EXIT_NOT_CONVERGED
 

@@ -8,6 +8,9 @@
   For the joints driven by one linear actuator (Hip3, knee) the configuration-dependent velocity and torque limits
   along the trajectory (actuator limit through the mechanism's transmission ratio) are drawn dash-dotted: the
   paper's figure could only show the joint table's constant values.
+* :func:`plot_actuators`: the use of every linear actuator's stroke, velocity and force (Table I; 1 = at the
+  limit) along the 1 kHz trajectory the planner publishes, one panel per kind and one line per actuator type, the
+  worst of its actuators at each sample (issue 14: a plan with the actuator limits stays below 1).
 """
 
 from __future__ import annotations
@@ -25,14 +28,14 @@ from rh5_hyrodyn_mapper.kinematics.base import KinematicsError
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_hyrodyn_mapper.model import joint_limits
 from rh5_msgs_py.names import ACTUATOR_INDEX, JOINT_GROUPS, JOINT_INDEX, SUBMECHANISMS
-from rh5_msgs_py.trajectory_file import TrajectoryData
+from rh5_msgs_py.trajectory_file import NQ, TrajectoryData
 
 from .limit_analysis import FOOT_SIZE_M, JOINT_KINDS, LimitScale, side_free_name
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
-__all__ = ["LEG_JOINTS", "configuration_limits", "plot_cop", "plot_joints"]
+__all__ = ["LEG_JOINTS", "configuration_limits", "plot_actuators", "plot_cop", "plot_joints"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -210,4 +213,48 @@ def plot_joints(
         f"{data.motion.get('name', '')}: joint space against the limits (dashed; dash-dotted: configuration-dependent)"
     )
     fig.savefig(path, dpi=100)
+    return path
+
+
+def plot_actuators(data: TrajectoryData, path: str | Path, *, reference: TrajectoryData | None = None) -> Path:
+    """Stroke, velocity and force use of the linear actuators at 1 kHz (worst actuator of each type per sample),
+    against 1 = the Table I limit; ``reference`` (e.g. the same motion planned with the paper's cost set) is drawn
+    thin and grey for comparison."""
+    from .actuator_bounds import parallel_units  # noqa: PLC0415
+    from .actuator_constraints import LINEAR_ACTUATORS, actuator_usage  # noqa: PLC0415
+    from .interpolation import interpolate  # noqa: PLC0415
+
+    path = Path(path)
+    types: dict[str, list[int]] = {}
+    for unit in parallel_units():
+        label = unit.name[2:] if unit.name[:2] in ("LL", "LR", "AL", "AR") else unit.name
+        types.setdefault(label, []).extend(LINEAR_ACTUATORS.index(a) for a in unit.actuators)
+
+    def usage(source: TrajectoryData) -> tuple[FloatArray, dict[str, FloatArray]]:
+        fine = interpolate(source, joints_only=True)
+        q, v = fine.states[:, 7:NQ], fine.states[:, NQ + 6 :]
+        return fine.times, actuator_usage(q, v, fine.controls)
+
+    fig = Figure(figsize=(11, 7), layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
+    colours = dict(zip(types, ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple"), strict=False))
+    runs = [(reference, True), (data, False)] if reference is not None else [(data, False)]
+    for source, grey in runs:
+        times, use = usage(source)
+        for ax, kind in zip(axes, ("stroke", "velocity", "force"), strict=True):
+            for label, columns in types.items():
+                worst = use[kind][:, columns].max(axis=1)
+                style = {"color": "0.6", "lw": 0.8} if grey else {"color": colours[label], "lw": 1.2, "label": label}
+                ax.plot(times[: len(worst)], worst, **style)
+    for ax, kind in zip(axes, ("stroke", "velocity", "force"), strict=True):
+        ax.axhline(1.0, color="k", ls="--", lw=1.0)
+        ax.set_ylabel(f"{kind} use")
+        ax.set_ylim(bottom=0.0)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8, ncol=5, loc="lower right")
+    note = " (grey: reference plan)" if reference is not None else ""
+    axes[0].set_title(f"{data.motion.get('name', '?')}: linear actuators against Table I at 1 kHz{note}")
+    axes[-1].set_xlabel("time [s]")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
     return path

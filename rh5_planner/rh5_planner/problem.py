@@ -18,6 +18,13 @@ Our own builders on Crocoddyl's public API (crocoddyl.utils.biped is not API and
   torque regularisation (``ResidualModelControl``).
 * Torque limits are the hard box of Box-FDDP: every action model's ``u_lb``/``u_ub`` are
   -/+ ``joint_limits().torque_max`` (the upper ends of the paper's configuration-dependent ranges).
+* Actuator limits (motions with ``actuator_limits``; costs.yaml ``actuator_limits``): the linear actuators' stroke,
+  velocity and force (Table I) through the parallel mechanisms' exact maps, as per-knot joint boxes built at the
+  current iterate (:mod:`rh5_planner.actuator_bounds`) and written into the joint-limit barrier's bounds (stroke,
+  velocity) and each knot's Box-FDDP box (force) before every continuation stage
+  (:mod:`rh5_planner.actuator_constraints`); Crocoddyl's per-knot work stays its own C++. After the final stage an
+  exact check at the knots and along the 1 kHz interpolation tightens the bounds where a limit is still exceeded
+  and solves again; the solver log's ``actuator_limits`` says what was enforced and the peaks reached.
 * Payload: ``motion.payload_kg_per_hand`` is added as a point mass at each hand TCP (``AL_TCP``/``AR_TCP``) to
   the inertia of the link carrying the TCP (pinocchio ``Inertia(m, c, 0)`` with c the TCP position in that
   joint's frame). The 5 kg bars of the paper become 2 x 5 kg at the grasp point.
@@ -71,6 +78,8 @@ from rh5_hyrodyn_mapper.model import build_model, joint_limits, model_hash, q_in
 from rh5_msgs_py.names import FOOT_FRAMES, HAND_FRAMES, JOINT_GROUPS, JOINT_NAMES
 from rh5_msgs_py.trajectory_file import TrajectoryData, save_trajectory
 
+from .actuator_bounds import ActuatorBounds
+from .actuator_constraints import ActuatorConstraints
 from .limit_analysis import FOOT_SIZE_M
 from .motions import SIDES, KnotSpec, MotionSpec, Reference
 
@@ -380,6 +389,10 @@ class _CostTerms:
     limit_bounds: crocoddyl.ActivationBounds
     cones: tuple[ContactCone, ...]
     foot_rotations: Mapping[str, FloatArray]
+    actuator_limits: bool = False
+    barriers: list[Any] = field(default_factory=list)
+    """Every node's joint-limit activation in build order (running nodes, then the terminal; None without one):
+    the actuator limits rewrite their bounds per node (actuator_constraints.ActuatorConstraints)."""
 
 
 def _make_terms(robot: RobotSetup, motion: MotionSpec, config: Mapping[str, Any]) -> _CostTerms:
@@ -415,7 +428,9 @@ def _make_terms(robot: RobotSetup, motion: MotionSpec, config: Mapping[str, Any]
     pin.framesForwardKinematics(model, data, robot.x0[: model.nq])
     rotations = {side: data.oMf[fid].rotation.copy() for side, fid in robot.foot_ids.items()}
     cones = contact_cones(config["contact_stability"], terms)
-    return _CostTerms(robot, config, terms, posture, control, bounds, cones, rotations)
+    return _CostTerms(
+        robot, config, terms, posture, control, bounds, cones, rotations, actuator_limits=bool(motion.actuator_limits)
+    )
 
 
 def contact_cones(settings: Mapping[str, Any], terms: frozenset[str]) -> tuple[ContactCone, ...]:
@@ -480,14 +495,18 @@ def _costs(ct: _CostTerms, spec: KnotSpec, nu: int, *, terminal: bool = False) -
                     crocoddyl.CostModelResidual(state, activation, residual),
                     float(cfg["contact_stability"]["weight"]),
                 )
-    if "joint" in ct.terms:
+    if "joint" in ct.terms or ct.actuator_limits:
+        # without the "joint" term the bounds are infinite until the actuator limits write theirs
+        bounds = ct.limit_bounds if "joint" in ct.terms else _unbounded(state.ndx)
         residual = crocoddyl.ResidualModelState(state, state.zero(), nu)
-        activation = crocoddyl.ActivationModelQuadraticBarrier(ct.limit_bounds)
-        costs.addCost(
-            "joint_limits",
-            crocoddyl.CostModelResidual(state, activation, residual),
-            float(cfg["joint_limits"]["weight"]),
-        )
+        activation = crocoddyl.ActivationModelQuadraticBarrier(bounds)
+        weight = cfg["joint_limits"]["weight"]
+        if ct.actuator_limits and cfg["actuator_limits"].get("barrier_weight") is not None:
+            weight = cfg["actuator_limits"]["barrier_weight"]
+        costs.addCost("joint_limits", crocoddyl.CostModelResidual(state, activation, residual), float(weight))
+        ct.barriers.append(activation)
+    else:
+        ct.barriers.append(None)
     if "posture" in ct.terms or terminal:
         residual = crocoddyl.ResidualModelState(state, robot.x0, nu)
         activation = crocoddyl.ActivationModelWeightedQuad(ct.posture_weights**2)
@@ -500,6 +519,10 @@ def _costs(ct: _CostTerms, spec: KnotSpec, nu: int, *, terminal: bool = False) -
             "torque", crocoddyl.CostModelResidual(state, activation, residual), float(cfg["torque"]["weight"])
         )
     return costs
+
+
+def _unbounded(ndx: int) -> crocoddyl.ActivationBounds:
+    return crocoddyl.ActivationBounds(np.full(ndx, -np.inf), np.full(ndx, np.inf), 1.0)
 
 
 def _contact_model(
@@ -660,6 +683,8 @@ class BuiltProblem:
     xs_guess: list[FloatArray]
     us_guess: list[FloatArray]
     terms: frozenset[str]
+    actuators: ActuatorConstraints | None = None
+    """The per-node actuator bounds (None: the motion plans without actuator limits)."""
 
 
 def build_problem(
@@ -691,7 +716,45 @@ def build_problem(
     else:
         xs = [robot.x0.copy() for _ in range(len(specs) + 1)]
     us = list(problem.quasiStatic(xs[:-1]))
-    return BuiltProblem(motion, robot, specs, problem, xs, us, ct.terms)
+    actuators = _actuator_constraints(ct, specs, running, terminal, limit_scale) if ct.actuator_limits else None
+    if actuators is not None:
+        actuators.refresh(xs, us)
+    return BuiltProblem(motion, robot, specs, problem, xs, us, ct.terms, actuators)
+
+
+def _actuator_constraints(
+    ct: _CostTerms,
+    specs: Sequence[KnotSpec],
+    running: Sequence[crocoddyl.ActionModelAbstract],
+    terminal: crocoddyl.ActionModelAbstract,
+    limit_scale: LimitScaleLike | None,
+) -> ActuatorConstraints:
+    """The actuator bounds of every node (joint-limit barriers of ``ct.barriers``, control boxes of the running
+    contact nodes); the design heuristic's joint factors scale the matching actuator kinds (position -> stroke,
+    velocity -> velocity, torque -> force: a faster knee is a faster knee actuator)."""
+    model = ct.robot.model
+    factors = limit_factors(limit_scale)
+    bounds = ActuatorBounds(
+        ct.config["actuator_limits"],
+        len(specs) + 1,
+        {"stroke": factors["position"], "velocity": factors["velocity"], "force": factors["torque"]},
+    )
+    base = ct.limit_bounds if "joint" in ct.terms else _unbounded(ct.robot.state.ndx)
+    controls = [None if spec.impulse else m for spec, m in zip(specs, running, strict=True)]
+    kept = [i for i in range(len(specs) + 1) if i == len(specs) or not specs[i].impulse]
+    del terminal
+    return ActuatorConstraints(
+        bounds,
+        barriers=ct.barriers,
+        controls=controls,
+        joint_lb=np.asarray(base.lb),
+        joint_ub=np.asarray(base.ub),
+        tau_max=ct.robot.tau_max,
+        q_order=q_index(model),
+        v_order=v_index(model),
+        kept=kept,
+        nq=model.nq,
+    )
 
 
 # --------------------------------------------------------------------------------------------------
@@ -926,7 +989,7 @@ def solve(
     base = [{name: float(item.weight) for name, item in costs.costs.todict().items()} for costs in sums]
     xs, us, feasible = built.xs_guess, built.us_guess, False
     iterations, stage_log = 0, []
-    t_solve = time.perf_counter()
+    t_solve, cpu_solve = time.perf_counter(), time.process_time()
     for k, stage in enumerate(stages):
         final = k == len(stages) - 1
         _scale_costs(sums, base, stage.get("scale", {}))
@@ -942,13 +1005,22 @@ def solve(
             else min(int(stage.get("max_iterations", 50)), settings.max_iterations - iterations)
         )
         regularization = settings.stage_regularization if k > 0 else settings.guess_regularization
+        if built.actuators is not None and k > 0:
+            built.actuators.refresh(xs, us)  # bounds at the previous stage's optimum (the first: at the guess)
         solved = bool(solver.solve(xs, us, max(1, budget), feasible, regularization)) or monitor.stalled
         iterations += monitor.iterations
         stage_log.append(
             {"scale": dict(stage.get("scale", {})), "iterations": monitor.iterations, "cost": float(solver.cost)}
         )
         xs, us, feasible = list(solver.xs), list(solver.us), bool(solver.isFeasible)
+    actuator_log: dict[str, Any] = {"enforced": []}
+    if built.actuators is not None:
+        solved, extra, actuator_log = _refine_actuator_limits(
+            built, solver, settings, config, solved=solved, offset=iterations
+        )
+        iterations += extra
     solve_time = time.perf_counter() - t_solve
+    solve_cpu = time.process_time() - cpu_solve
     solver.th_stop = settings.stop_threshold
     knots = len(built.specs)
     converged = solved and bool(solver.isFeasible)
@@ -964,6 +1036,9 @@ def solve(
         "build_time_s": build_time,
         "knots": knots,
         "ms_per_knot_iteration": 1e3 * solve_time / max(1, knots * max(1, iterations)),
+        # CPU time of this process (all its threads): robust where other processes share the cores
+        "solve_cpu_s": solve_cpu,
+        "cpu_ms_per_knot_iteration": 1e3 * solve_cpu / max(1, knots * max(1, iterations)),
         "stop_reason": ("gradient" if float(solver.stop) < settings.stop_threshold else "cost_stalled")
         if converged
         else "iteration_limit",
@@ -971,6 +1046,7 @@ def solve(
         "nthreads": settings.nthreads,
         "cost_terms": sorted(built.terms),
         "mass_kg": robot_mass(built.robot),
+        "actuator_limits": actuator_log,
     }
     scaled = {
         f"{name}:{kind}": float(f[j])
@@ -983,6 +1059,55 @@ def solve(
     if not math.isfinite(log["cost"]):
         log["converged"] = False
     return _extract(built, solver, log)
+
+
+def _refine_actuator_limits(
+    built: BuiltProblem,
+    solver: crocoddyl.SolverBoxFDDP,
+    settings: SolverSettings,
+    config: Mapping[str, Any],
+    *,
+    solved: bool,
+    offset: int,
+) -> tuple[bool, int, dict[str, Any]]:
+    """Check the solution's exact actuator use at the knots and at 1 kHz; where a limit is exceeded, tighten the
+    bounds there, refresh every bound at the solution and solve the final stage again (costs.yaml
+    ``actuator_limits.refine_rounds`` times at most). Returns (solved, iterations spent, solver-log entry)."""
+    actuators = built.actuators
+    assert actuators is not None
+    settings_al = config["actuator_limits"]
+    rounds, extra = [], 0
+    dt = built.motion.dt
+    check = actuators.check_iterate(solver.xs, solver.us, dt)
+    for _ in range(int(settings_al.get("refine_rounds", 0))):
+        if check.ok:
+            break
+        changed = actuators.tighten_from(check)
+        xs, us = list(solver.xs), list(solver.us)
+        actuators.refresh(xs, us)
+        monitor = _ProgressCallback(
+            settings.callback, offset + extra, settings.cost_tolerance, settings.stall_iterations
+        )
+        solver.setCallbacks([monitor])
+        solver.th_stop = settings.stop_threshold
+        budget = max(1, min(int(settings_al.get("refine_iterations", 40)), settings.max_iterations - offset - extra))
+        solved = bool(solver.solve(xs, us, budget, bool(solver.isFeasible), settings.stage_regularization))
+        solved = solved or monitor.stalled
+        extra += monitor.iterations
+        rounds.append({"violations": len(check.over), "bounds_tightened": changed, "iterations": monitor.iterations})
+        check = actuators.check_iterate(solver.xs, solver.us, dt)
+    log = {
+        "enforced": list(actuators.kinds),
+        "mechanisms": [unit.model.name for unit in actuators.bounds.units],
+        "form": "per-knot joint boxes at the iterate: joint-limit barrier (stroke, velocity), Box-FDDP box (force)",
+        "refreshes": actuators.refreshes,
+        "python_cpu_s": round(actuators.overhead_s, 4),
+        "refine_rounds": rounds,
+        "within_limits": check.ok,
+        "violations_left": len(check.over),
+        "peak_utilisation": check.summary(),
+    }
+    return solved, extra, log
 
 
 def robot_mass(robot: RobotSetup) -> float:

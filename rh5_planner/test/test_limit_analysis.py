@@ -294,10 +294,44 @@ def test_heuristic_reports_failure_and_nominal_success() -> None:
     assert len(fine.steps) == 1
 
 
+def test_actuator_space_heuristic_reports_an_actuator_specification() -> None:
+    """Knees at 0.95 of their joint velocity limit but over their actuators' speed (the configuration-dependent
+    limit): required to hold the actuator limits, the heuristic scales the knee velocity and reports it as a knee
+    actuator speed (Table I) beside the joint-space factor."""
+    result = improve_design(
+        get_motion("vertical_jump_10cm"),
+        None,
+        required=("position", "torque", "velocity", "stroke", "actuator_velocity", "force"),
+        solve_function=fake_planner({"LLKnee": 0.95, "LRKnee": 0.95}),
+    )
+    assert result.steps[0].violations == {"actuator_velocity": ("LLKnee_Act1", "LRKnee_Act1")}
+    assert result.limits == (("Knee", "velocity"),)
+    assert result.feasible
+    (factor,) = {f for _, _, f in result.scaled_limits()}
+    report = result.report()
+    assert f"Knee velocity x{factor:g} (joint space" in report
+    assert f"Knee actuator (LLKnee_Act1, LRKnee_Act1) 140 -> {140 * factor:.0f} mm/s" in report
+
+
+def test_actuator_specs_and_binding_limits() -> None:
+    specs = design.actuator_specs(
+        [("Hip3", "velocity", 2.0), ("BodyPitch", "torque", 1.5), ("ALShoulder1", "torque", 3.0)]
+    )
+    assert specs == [
+        "Hip3 actuator (LLHip3_Act1, LRHip3_Act1) 175 -> 350 mm/s (x2)",
+        "Body actuator (Body_Act1, Body_Act2) 2716 -> 4074 N (x1.5)",
+    ]
+    at_the_edge = analyse(synthetic(edits={"v:LLKnee:4": 0.9 * vmax("LLKnee")}))
+    assert critical_limits(at_the_edge) == ()
+    assert design.binding_limits(at_the_edge) == (("Knee", "velocity"),)
+
+
 def test_scaled_limits_reach_the_built_problem() -> None:
-    """A LimitScale reaches the planner: joint-limit bounds and the Box-FDDP torque box of the built problem."""
+    """A LimitScale reaches the planner: joint-limit bounds and the Box-FDDP torque box of the built problem (on the
+    paper's cost set: with the actuator limits the torso's torque box is its actuators' force bound, which scales
+    with the same factor)."""
     scale = LimitScale((("knee", "velocity", 3.0), ("BodyPitch", "torque", 2.0), ("knee", "position", 2.0)))
-    motion = get_motion("squat_with_5kg_weights", SHORT_SQUAT)
+    motion = get_motion("squat_with_5kg_weights", {**SHORT_SQUAT, "actuator_limits": False})
     nominal = problem.build_problem(motion)
     scaled = problem.build_problem(motion, limit_scale=scale)
     vi = v_index(nominal.robot.model) - 6
@@ -310,6 +344,12 @@ def test_scaled_limits_reach_the_built_problem() -> None:
     mid = 0.5 * (nominal.robot.q_lower + nominal.robot.q_upper)
     factor = np.where(np.isin(np.arange(32), knees), 2, 1)
     np.testing.assert_allclose(scaled.robot.q_upper - mid, factor * (nominal.robot.q_upper - mid))
+    # actuator limits: the torso's force bound (a "torque" factor) doubles, below the doubled joint torque limit
+    with_actuators = get_motion("squat_with_5kg_weights", SHORT_SQUAT)
+    box = problem.build_problem(with_actuators).problem.runningModels[0].u_ub[body]
+    scaled_box = problem.build_problem(with_actuators, limit_scale=scale).problem.runningModels[0].u_ub[body]
+    assert box < tmax("BodyPitch")
+    assert scaled_box == pytest.approx(2 * box)
 
 
 # --------------------------------------------------------------------------------------------------

@@ -33,7 +33,7 @@ def test_plan_writes_file_plots_table_and_shows_progress(tmp_path: Path) -> None
     data = load_trajectory(tmp_path / f"{name}.rh5traj", expected_model_hash=model_hash())
     assert data.motion["parameters"]["total_time_s"] == 0.6
     assert data.solver_log["converged"]
-    for png in (f"{name}_cop.png", f"{name}_joints.png"):
+    for png in (f"{name}_cop.png", f"{name}_joints.png", f"{name}_actuators.png"):
         assert (tmp_path / png).read_bytes()[:4] == b"\x89PNG"
     table = (tmp_path / f"{name}_limits.md").read_text(encoding="utf-8")
     assert "| Motion | Conv. | Pos. Lim." in table
@@ -60,7 +60,8 @@ def test_no_plots(tmp_path: Path) -> None:
 def test_table_compares_with_the_paper(tmp_path: Path) -> None:
     code, out, err = run("--table", "squat_with_5kg_weights", *SHORT, "--output-dir", str(tmp_path))
     assert code == 0, err
-    assert "| squat_with_5kg_weights | yes | \u2713 | \u2713 | \u2713 |" in out
+    # planned with the actuator limits (the default since issue 14): the row says so
+    assert "| squat_with_5kg_weights +act | yes | \u2713 | \u2713 | \u2713 |" in out
     assert "squat_with_5kg_weights / Vel. Lim.: paper \u2713, ours \u2713: agree" in out
     assert "3/3 cells agree" in out
     assert (tmp_path / "feasibility.md").read_text(encoding="utf-8") in out
