@@ -23,8 +23,8 @@ from rh5_hyrodyn_mapper.mapper_node import MapperNode
 from rh5_joint_stabilizer.stabilizer_node import StabilizerNode
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import Level, Status, diagnostics_to_msg
-from rh5_msgs_py.node_runtime import SuiteNode, log_realtime_grant, run_node
-from rh5_msgs_py.realtime import DeadlineLoop, RealtimePublisher, request_realtime
+from rh5_msgs_py.node_runtime import SuiteNode, run_node
+from rh5_msgs_py.realtime import RealtimePublisher, request_realtime
 
 DIAGNOSTICS_PERIOD_S: Final = 1.0
 PUBLISH_SLACK_NS: Final = 150_000
@@ -53,16 +53,8 @@ class ControlNode(SuiteNode):
         self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
         params = self.params
-        self.loop = DeadlineLoop(
-            params["rate_hz"],
-            self.cycle.step,
-            name="control-1kHz",
-            priority=params["realtime_priority"],
-            on_realtime=lambda grant: log_realtime_grant(self.get_logger(), grant),
-        )
-        self.context.on_shutdown(self.loop.stop)  # SIGINT shuts the context down before the nodes are destroyed
         for node in (self, driver, mapper, stabilizer):
-            node.status_gate = lambda: self.loop.wait_for_slack(STATUS_SLACK_NS)
+            node.status_gate = self._wait_for_status_slack
         # The publisher and the executor share the interpreter lock with the cycle. At normal priority the OS may
         # preempt them while they hold it (the simulation is busy on both cores), and the cycle then waits for
         # milliseconds: a priority inversion. They get SCHED_FIFO just below the cycle; they never spin, and
@@ -72,8 +64,11 @@ class ControlNode(SuiteNode):
         )
         self.publisher.on_start = lambda: request_realtime(helper_priority)
         self.helper_realtime = request_realtime(helper_priority)  # this thread: the executor's
-        self.publisher.start()
-        self.loop.start()
+        self.loop = self.start_loop(params["rate_hz"], self.cycle.step, "control-1kHz", params["realtime_priority"])
+        self.publisher.start()  # after the loop exists: it waits for the loop's slack
+
+    def _wait_for_status_slack(self) -> None:
+        self.loop.wait_for_slack(STATUS_SLACK_NS)
 
     def _publish(self, sample: CycleSample) -> None:
         """The publisher thread: the cycle's four topics (serialised directly: ``encode_serialized``) and a

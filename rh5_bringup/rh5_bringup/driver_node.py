@@ -24,7 +24,7 @@ from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec, Level, Status, diagnostics_to_msg
 from rh5_msgs_py.names import ACTUATOR_NAMES
-from rh5_msgs_py.node_runtime import SuiteNode, log_realtime_grant, run_node
+from rh5_msgs_py.node_runtime import SuiteNode, run_node
 from rh5_msgs_py.realtime import DeadlineLoop
 
 DIAGNOSTICS_PERIOD_S: Final = 1.0
@@ -87,15 +87,7 @@ class DriverNode(SuiteNode):
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
         self.loop: DeadlineLoop | None = None
         if not composed:
-            self.loop = DeadlineLoop(
-                params["rate_hz"],
-                self._tick,
-                name="driver-1kHz",
-                priority=params["realtime_priority"],
-                on_realtime=lambda grant: log_realtime_grant(self.get_logger(), grant),
-            )
-            self.context.on_shutdown(self.loop.stop)  # SIGINT shuts the context down before the node is destroyed
-            self.loop.start()
+            self.loop = self.start_loop(params["rate_hz"], self._tick, "driver-1kHz", params["realtime_priority"])
 
     def _on_event(self, text: str) -> None:
         self.get_logger().error(text)

@@ -22,7 +22,7 @@ from rh5_joint_stabilizer.reference import PlannedTrajectory, TrajectoryRejected
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec, Level, Status, diagnostics_to_msg, joint_trajectory_from_cdr
 from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS
-from rh5_msgs_py.node_runtime import SuiteNode, log_realtime_grant, run_node
+from rh5_msgs_py.node_runtime import SuiteNode, run_node
 from rh5_msgs_py.realtime import DeadlineLoop, LatestValue
 from rh5_msgs_py.trajectory_file import TrajectoryFileError, load_trajectory
 
@@ -106,15 +106,7 @@ class StabilizerNode(SuiteNode):
             self._load_file(params["trajectory_file"])
         self.loop: DeadlineLoop | None = None
         if not composed:
-            self.loop = DeadlineLoop(
-                params["rate_hz"],
-                self._tick,
-                name="stabilizer-1kHz",
-                priority=params["realtime_priority"],
-                on_realtime=lambda grant: log_realtime_grant(self.get_logger(), grant),
-            )
-            self.context.on_shutdown(self.loop.stop)  # SIGINT shuts the context down before the node is destroyed
-            self.loop.start()
+            self.loop = self.start_loop(params["rate_hz"], self._tick, "stabilizer-1kHz", params["realtime_priority"])
 
     def _log_event(self, text: str) -> None:
         self.events.append(text)

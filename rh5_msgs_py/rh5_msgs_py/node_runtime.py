@@ -22,7 +22,7 @@ from rclpy.subscription import Subscription
 
 from rh5_msgs_py.interfaces import Topic, message_class
 from rh5_msgs_py.parameters import declare_parameters, load_spec, parameter_values
-from rh5_msgs_py.realtime import RTPRIO_FIX, RealtimeGrant
+from rh5_msgs_py.realtime import RTPRIO_FIX, DeadlineLoop, RealtimeGrant
 from rh5_msgs_py.ros_env import apply_safe_defaults
 from rh5_msgs_py.streams import StreamThread
 
@@ -75,6 +75,16 @@ class SuiteNode(Node):
             callback(msg)
 
         return self._streams.subscribe(topic, on_message)
+
+    def start_loop(self, rate_hz: float, step: Callable[[int, int], None], name: str, priority: int) -> DeadlineLoop:
+        """Start the node's 1 kHz loop: SCHED_FIFO at ``priority`` if granted (the grant logged, a refusal warned
+        about once), stopped when SIGINT shuts the context down (before the node is destroyed)."""
+        loop = DeadlineLoop(
+            rate_hz, step, name=name, priority=priority, on_realtime=lambda g: log_realtime_grant(self.get_logger(), g)
+        )
+        self.context.on_shutdown(loop.stop)
+        loop.start()
+        return loop
 
     def destroy_node(self) -> None:
         """Stop the stream thread before the subscriptions go away."""
