@@ -89,8 +89,7 @@ class DriverCore:
         self._on_event = on_event
         self._table = board_map.scaling_table()
         self._encoder = FrameEncoder(board_map.pc_address)
-        self._addresses = board_map.addresses()
-        self._frames = CommandFrames(self._encoder, self._addresses, self._table)
+        self._frames = CommandFrames(self._encoder, board_map.addresses(), self._table)
         # setpoints are clamped to the actuator limits and to what the wire can carry, so every frame encodes
         self._clip_low = np.maximum(
             np.array([limits.position_min, -limits.velocity_max, -limits.effort_max]), self._frames.low

@@ -139,9 +139,7 @@ def encode_frame(receiver: int, sender: int, counter: int, payload: bytes) -> by
     crc = binascii.crc_hqx(raw.translate(_REVERSE_BITS), FCS_INIT)
     # fcs16 little-endian = the non-reflected CRC big-endian with each byte bit-reversed
     raw += bytes((crc >> 8, crc & 0xFF)).translate(_REVERSE_BITS)
-    if _ESC_BYTES in raw or _FLAG_BYTES in raw:
-        raw = raw.replace(_ESC_BYTES, _ESCAPED_ESC).replace(_FLAG_BYTES, _ESCAPED_FLAG)
-    return _FLAG_BYTES + raw + _FLAG_BYTES
+    return escape_body(raw)
 
 
 class FrameCounter:
