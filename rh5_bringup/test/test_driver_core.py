@@ -35,27 +35,28 @@ CENTRE = sine_centre(robot_mapper().to_actuators(np.zeros(NUM_JOINTS)).position,
 
 
 def test_sine_is_tracked_over_the_virtual_can_bus() -> None:
-    """python-can's virtual bus at 50 Hz: a cycle of 32 boards is 320 classic CAN frames (docs/protocol.md:
-    CAN cannot carry the full robot at 1 kHz), which the virtual bus copies one by one in this process
-    (about 10 ms of Python per cycle for both sides together)."""
+    """python-can's virtual bus at 20 Hz: a cycle of 32 boards is about 320 classic CAN frames (docs/protocol.md:
+    CAN cannot carry the full robot at 1 kHz), which the virtual bus deep-copies one by one in this process:
+    13 ms of the driver's CPU per cycle measured here, about 25 ms for both sides sharing one GIL, so 50 Hz
+    overran its period and the readings fell behind by the backlog, not by the mapping."""
     board_map = load_board_map()
     channel = f"rh5-test-{time.monotonic_ns()}"
     sim = open_transport("can", interface="virtual", channel=channel, receivers=board_map.addresses())
     link = open_transport("can", interface="virtual", channel=channel, receivers=[board_map.pc_address])
     bank = ActuatorBank()
     bank.reset(CENTRE)
-    boards = BoardsServer(BoardEmulator(board_map, sim, bank), period_ns=20_000_000, answer_bursts=False)
-    driver = DriverLoop(board_map, link, LIMITS, CENTRE, rate_hz=50.0, silence_timeout_ns=100_000_000)
+    boards = BoardsServer(BoardEmulator(board_map, sim, bank), period_ns=50_000_000, answer_bursts=False)
+    driver = DriverLoop(board_map, link, LIMITS, CENTRE, rate_hz=20.0, sine_hz=0.2, silence_timeout_ns=250_000_000)
     assert driver.core.enable(True)[0]
     boards.start()
     driver.loop.start()
-    time.sleep(2.5)
+    time.sleep(3.5)
     driver.loop.stop()
     boards.stop()
     link.shutdown()
     sim.shutdown()
     errors = driver.tracking_error(percentile=99.0)
-    # Two 20 ms cycles of latency plus a 20 ms zero-order hold: A w (40 + 20) ms ~ 0.9 mm at 5 mm amplitude
+    # Two 50 ms cycles of latency plus a 50 ms zero-order hold: A w (100 + 50) ms ~ 0.9 mm at 5 mm and 0.2 Hz
     assert errors[LINEAR].max() < 2.0e-3
     assert errors[~LINEAR].max() < 20e-3
     assert not driver.core.safe_hold_reason
