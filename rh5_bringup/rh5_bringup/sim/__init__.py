@@ -1,6 +1,6 @@
 """Simulated RH5 hardware: models of what the boards and the robot do, free of ROS.
 
-Names resolve lazily (PEP 562), so ``python -m rh5_bringup.sim.actuators`` runs the module only once.
+Names resolve lazily (PEP 562): importing one model does not import the others (physics pulls in PyBullet).
 """
 
 from __future__ import annotations
@@ -18,9 +18,7 @@ if TYPE_CHECKING:
         ActuatorState,
         Mode,
         Status,
-        StepCost,
         default_params,
-        measure_step_cost,
     )
 
 _EXPORTS = dict.fromkeys(
@@ -33,9 +31,7 @@ _EXPORTS = dict.fromkeys(
         "ActuatorState",
         "Mode",
         "Status",
-        "StepCost",
         "default_params",
-        "measure_step_cost",
     ),
     "actuators",
 )
@@ -48,9 +44,7 @@ __all__ = [
     "ActuatorState",
     "Mode",
     "Status",
-    "StepCost",
     "default_params",
-    "measure_step_cost",
 ]
 
 

@@ -57,17 +57,15 @@ environment applies at the output (0 or a constant load in kinematic mode, from 
 in physics mode), held constant over the cycle.
 
 Cost: ~17 numpy calls on (32,) arrays per sub-step and ~50 per cycle, about 45 us per 1 ms cycle for all
-32 actuators on the development machine; `measure_step_cost` measures it, and
-``python -m rh5_bringup.sim.actuators`` prints it with the derived parameters per actuator type.
+32 actuators on the development machine; ``bench/sim_actuators.py`` measures it against its 100 us budget
+and prints the derived parameters per actuator type.
 """
 
 from __future__ import annotations
 
-import argparse
 import fnmatch
 import math
-import time
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
 from enum import IntEnum, IntFlag
 from importlib import resources
@@ -837,37 +835,6 @@ class ActuatorBank:
 # Cost and a summary for people
 
 
-class StepCost(NamedTuple):
-    """Wall-clock cost of one `ActuatorBank.step` for all actuators [us]."""
-
-    median_us: float
-    mean_us: float
-    p99_us: float
-    steps: int
-
-
-def measure_step_cost(params: ActuatorParams | None = None, steps: int = 3000, warmup: int = 300) -> StepCost:
-    """Time ``steps`` cycles of all actuators tracking a 0.5 Hz sine in POSITION_FF mode under a constant load."""
-    bank = ActuatorBank(params)
-    p = bank.params
-    mid, amplitude = 0.5 * (p.position_min + p.position_max), 0.1 * p.stroke
-    load, compensation = 0.1 * p.force_max, -0.1 * p.force_max
-    bank.reset(mid)
-    mode = np.full(p.num, Mode.POSITION_FF, dtype=np.int8)
-    omega = math.pi
-    times = np.empty(steps)
-    for k in range(warmup + steps):
-        t = k * NOMINAL_DT
-        s, c = math.sin(omega * t), math.cos(omega * t)
-        setpoint, v_ff = mid + amplitude * s, amplitude * omega * c
-        start = time.perf_counter_ns()
-        bank.step(NOMINAL_DT, mode, setpoint, velocity_ff=v_ff, force_ff=compensation, external_force=load)
-        if k >= warmup:
-            times[k - warmup] = time.perf_counter_ns() - start
-    times *= 1e-3
-    return StepCost(float(np.median(times)), float(times.mean()), float(np.percentile(times, 99)), steps)
-
-
 def parameter_table(params: ActuatorParams) -> list[dict[str, Any]]:
     """One row per actuator type: the first actuator's parameters (SI units)."""
     rows = []
@@ -897,25 +864,3 @@ def parameter_table(params: ActuatorParams) -> list[dict[str, Any]]:
             }
         )
     return rows
-
-
-def main(argv: Iterable[str] | None = None) -> None:
-    """Print the derived parameters per actuator type and the measured cost per cycle."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=3000, help="cycles to time")
-    args = parser.parse_args(None if argv is None else list(argv))
-    params = default_params()
-    keys = ("N", "k_t", "K", "R", "I_max", "M", "b", "F_c", "kp_pos", "kp_vel", "ki_vel", "knee_speed")
-    print(f"{'type':<11}{'n':>3} {'v_max':>9} {'f_max':>8} " + " ".join(f"{k:>10}" for k in keys))
-    for row in parameter_table(params):
-        values = " ".join(f"{row[k]:10.4g}" for k in keys)
-        print(f"{row['type']:<11}{row['count']:>3} {row['velocity_max']:9.4g} {row['force_max']:8.4g} {values}")
-    cost = measure_step_cost(params, steps=args.steps)
-    print(
-        f"step cost, {params.num} actuators, {params.substeps} sub-steps: median {cost.median_us:.1f} us, "
-        f"mean {cost.mean_us:.1f} us, p99 {cost.p99_us:.1f} us over {cost.steps} cycles"
-    )
-
-
-if __name__ == "__main__":
-    main()
