@@ -25,7 +25,7 @@ lint: $(STAMP)
 venv: $(STAMP)
 
 # The stamp depends on everything that decides what is installed, so an edited lock re-installs.
-$(STAMP): constraints.txt requirements.txt $(foreach p,$(PACKAGES),$(p)/setup.py $(p)/package.xml)
+$(STAMP): constraints.txt requirements.txt $(foreach p,$(PACKAGES),$(p)/setup.py $(p)/package.xml) $(wildcard */*/*/*.c)
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	@touch $(VENV)/COLCON_IGNORE  # keep colcon from crawling the venv's share/*/package.xml
 	$(PY) -m pip install --quiet --disable-pip-version-check -c constraints.txt -r requirements.txt

@@ -305,3 +305,104 @@ def test_table_fcs_of_fixed_length_messages_is_the_fcs(data: bytes) -> None:
     for position, value in enumerate(data):
         by_table ^= int(tables[position, value])
     assert by_table == fcs16(data) == fcs16_reference(data)
+
+
+# --------------------------------------------------------------------------------------------------- C vs the spec
+
+
+def spec_decode(stream: bytes) -> tuple[list[Frame], LinkCounters]:
+    """docs/protocol.md's decoding rules written out byte by byte, slowly: the oracle for the C deframer.
+
+    Bytes before the first flag are garbage; every flag ends a candidate; an unfinished tail is not decoded,
+    but one longer than any escaped frame is counted oversize.
+    """
+    counters, frames = LinkCounters(), []
+    first = stream.find(b"\x7e")
+    if first < 0:
+        counters.garbage_bytes += len(stream)
+        return frames, counters
+    counters.garbage_bytes += first
+    *candidates, tail = stream[first + 1 :].split(b"\x7e")
+    if len(tail) > MAX_ENCODED_SIZE - 2:
+        counters.oversize[spec_decode_sender(tail[:8])] += 1
+    for escaped in candidates:
+        if len(escaped) < 6:
+            counters.garbage_bytes += len(escaped)
+            continue
+        body, i, valid = bytearray(), 0, True
+        while i < len(escaped):
+            b = escaped[i]
+            if b == 0x7D:
+                if i + 1 == len(escaped) or escaped[i + 1] not in (0x5E, 0x5D):
+                    valid = False
+                    b = 0x7D
+                else:
+                    i += 1
+                    b = escaped[i] ^ 0x20
+            body.append(b)
+            i += 1
+        attributed = body[1] if len(body) > 1 else 0  # the sender byte as far as it can be read
+        if len(escaped) > MAX_ENCODED_SIZE - 2:
+            head = spec_decode_sender(escaped[:8])
+            counters.oversize[head] += 1
+        elif not valid:
+            counters.malformed[attributed] += 1
+        elif len(body) < 6:
+            counters.garbage_bytes += len(escaped)
+        elif len(body) > 261:
+            counters.oversize[body[1]] += 1
+        elif fcs16_reference(bytes(body)) != 0:
+            counters.crc_errors[body[1]] += 1
+        elif body[3] != len(body) - 6:
+            counters.malformed[body[1]] += 1
+        else:
+            receiver, sender, counter = body[0], body[1], body[2]
+            previous = counters.last_counter[sender << 8 | receiver]
+            if previous >= 0:
+                counters.lost[sender] += (counter - previous - 1) & 0xFF
+            counters.last_counter[sender << 8 | receiver] = counter
+            counters.frames[sender] += 1
+            frames.append(Frame(receiver, sender, counter, bytes(body[4:-2])))
+    return frames, counters
+
+
+def spec_decode_sender(escaped: bytes) -> int:
+    """The second byte of ``escaped`` read through well-formed escapes (attribution of an oversize run)."""
+    raw, i = bytearray(), 0
+    while i < len(escaped):
+        if escaped[i] == 0x7D and i + 1 < len(escaped) and escaped[i + 1] in (0x5E, 0x5D):
+            raw.append(escaped[i + 1] ^ 0x20)
+            i += 2
+        else:
+            raw.append(escaped[i])
+            i += 1
+    return raw[1] if len(raw) > 1 else 0
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(
+        st.one_of(
+            st.tuples(byte, byte, byte, payloads).map(lambda f: encode_frame(*f)),
+            st.binary(max_size=40),
+            st.sampled_from([b"\x7e", b"\x7d", b"\x7d\x7e", b"\x7e\x7e", b"\x7d\x5e", bytes(600)]),
+            st.tuples(byte, byte, byte, payloads, st.integers(0, 40), st.integers(0, 7)).map(
+                lambda f: flip_bit(encode_frame(*f[:4]), f[4] % (len(f[3]) + 8), f[5])
+            ),
+        ),
+        max_size=12,
+    ),
+    st.integers(0, 10_000),
+)
+def test_decoder_follows_the_spec_on_any_stream(pieces: list[bytes], cut: int) -> None:
+    """The C deframer (through FrameDecoder) gives the spec's frames and every count; fed in two chunks, the
+    same frames (a chunk boundary inside an oversize run turns part of it into garbage instead)."""
+    stream = b"".join(pieces)
+    expected_frames, expected = spec_decode(stream)
+    whole = FrameDecoder()
+    assert whole.feed(stream) == expected_frames
+    assert whole.stats() == expected.snapshot()
+    assert whole.counters.last_counter == expected.last_counter
+    cut %= len(stream) + 1
+    chunked = FrameDecoder()
+    assert chunked.feed(stream[:cut]) + chunked.feed(stream[cut:]) == expected_frames

@@ -5,8 +5,10 @@ Pure functions and one streaming decoder; no I/O. Wire-compatible with DFKI's ND
     0x7E | escaped( receiver sender counter length | payload | FCS16 little-endian ) | 0x7E
 
 The FCS is the reflected CRC-16 (polynomial 0x8408, init 0xFFFF, no final complement). ``fcs16_reference`` is the
-classic 256-entry table loop; the codec's hot path computes the same value with ``binascii.crc_hqx`` (the
-non-reflected CRC-CCITT in C) on bit-reversed bytes, which is about 8x faster in CPython (bench/codec.py).
+classic 256-entry table loop; ``fcs16`` computes the same value with ``binascii.crc_hqx`` (the non-reflected
+CRC-CCITT in C) on bit-reversed bytes, which is about 8x faster in CPython (bench/codec.py). The decoder's per-byte
+loop (split, unescape, FCS, checks, counters) is C, ``_framing.c``, built with the package: in Python it cost
+~2.5 us a frame, a tenth of the 1 kHz control cycle for 32 telemetry frames.
 """
 
 from __future__ import annotations
@@ -17,6 +19,8 @@ import struct
 from typing import Final, NamedTuple
 
 import numpy as np
+
+from rh5_bringup.ndlcom._framing import split_frames
 
 __all__ = [
     "BROADCAST",
@@ -275,9 +279,6 @@ def _best_effort_sender(escaped: bytes) -> int:
     return raw[1] if len(raw) > 1 else 0
 
 
-_new_frame = tuple.__new__
-
-
 class FrameDecoder:
     """Streaming NDLCom decoder: feed it byte chunks of any size, get complete good frames back.
 
@@ -337,43 +338,20 @@ class FrameDecoder:
             counters.garbage_bytes += start
             data = data[start + 1 :]
             self._synced = True
-        parts = (self._pending + data).split(_FLAG_BYTES)
-        pending = parts.pop()
-        frames: list[Frame] = []
-        frames_count, last, lost = self._frames, self._last, self._lost
-        for escaped in parts:
-            part = escaped
-            size = len(part)
-            if size < MIN_FRAME_SIZE:
-                counters.garbage_bytes += size  # an empty part is just two adjacent flags
-                continue
-            if size > _MAX_ESCAPED_BODY:
-                self._oversize[_best_effort_sender(part[:8])] += 1
-                continue
-            if _ESC_BYTES in part:
-                if part.count(_ESC_BYTES) != part.count(_ESCAPED_FLAG) + part.count(_ESCAPED_ESC):
-                    self._malformed[_best_effort_sender(part)] += 1
-                    continue
-                part = part.replace(_ESCAPED_FLAG, _FLAG_BYTES).replace(_ESCAPED_ESC, _ESC_BYTES)
-                size = len(part)
-                if size < MIN_FRAME_SIZE:
-                    counters.garbage_bytes += len(escaped)
-                    continue
-            receiver, sender, counter, length = HEADER.unpack_from(part)
-            if size > MAX_FRAME_SIZE:
-                self._oversize[sender] += 1
-            elif binascii.crc_hqx(part.translate(_REVERSE_BITS), FCS_INIT) != FCS_GOOD:
-                self._crc_errors[sender] += 1
-            elif length != size - MIN_FRAME_SIZE:
-                self._malformed[sender] += 1
-            else:
-                key = sender << 8 | receiver
-                previous = last[key]
-                if previous >= 0 and not resync_counters:
-                    lost[sender] += (counter - previous - 1) & 0xFF
-                last[key] = counter
-                frames_count[sender] += 1
-                frames.append(_new_frame(Frame, (receiver, sender, counter, part[4:-2])))
+        stream = self._pending + data
+        frames, garbage, pending_at = split_frames(
+            stream,
+            Frame,
+            self._frames,
+            self._crc_errors,
+            self._malformed,
+            self._oversize,
+            self._lost,
+            self._last,
+            resync_counters,
+        )
+        counters.garbage_bytes += garbage
+        pending = stream[pending_at:]
         if len(pending) > _MAX_ESCAPED_BODY:
             # No frame is this long even fully escaped: count it, drop it, wait for the next flag.
             self._oversize[_best_effort_sender(pending[:8])] += 1
