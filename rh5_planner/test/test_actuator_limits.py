@@ -158,3 +158,21 @@ def test_refresh_writes_the_bounds_into_the_problem(kind: str) -> None:
         running.calc(data, xs[2], us[2])
         barrier = data.differential.costs.costs["joint_limits"].cost
         assert (barrier > 0.0) == violated, (kind, beta, barrier)
+
+
+@pytest.mark.parametrize("unit", sorted(UNITS))
+def test_jacobian_of_the_boxes_is_the_derivative_of_the_stroke_map(unit: str) -> None:
+    """The velocity and force boxes rest on J(y) = dl/dy; at random configurations it matches central finite
+    differences of the exact stroke map l(y) (the mapper's inverse kinematics) to 1e-6 relative."""
+    model = UNITS[unit]
+    limits = joint_limits()
+    jj = [JOINT_INDEX[j] for j in model.joints]
+    lo, hi = np.asarray(limits.position_lower)[jj], np.asarray(limits.position_upper)[jj]
+    y = lo + (hi - lo) * np.random.default_rng(7).uniform(0.2, 0.8, (5, len(jj)))
+    jac = model.jacobian(y)
+    h = 1e-6
+    for j in range(len(jj)):
+        step = np.zeros(len(jj))
+        step[j] = h
+        column = (model.inverse(y + step) - model.inverse(y - step)) / (2 * h)
+        np.testing.assert_allclose(jac[:, :, j], column, rtol=1e-6, atol=1e-9 * np.abs(jac).max())
