@@ -251,7 +251,7 @@ def plot_actuators(data: TrajectoryData, path: str | Path, *, reference: Traject
         ax.set_ylabel(f"{kind} use")
         ax.set_ylim(bottom=0.0)
         ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=8, ncol=5, loc="lower right")
+    fig.legend(*axes[0].get_legend_handles_labels(), fontsize=8, ncol=5, loc="outside lower center")  # off the traces
     note = " (grey: reference plan)" if reference is not None else ""
     axes[0].set_title(f"{data.motion.get('name', '?')}: linear actuators against Table I at 1 kHz{note}")
     axes[-1].set_xlabel("time [s]")
