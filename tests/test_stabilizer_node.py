@@ -31,6 +31,7 @@ class Harness:
 
         self.node = node
         self.commands: list[float] = []
+        """Header stamps of the joint_commands received (s): when the stabilizer's cycle made them."""
         self.statuses: list[Any] = []
         self.trajectory = node.create_publisher(
             JointTrajectory, interfaces.PLANNED_TRAJECTORY.name, interfaces.LATCHED_QOS
@@ -40,7 +41,7 @@ class Harness:
         node.create_subscription(
             JointState,
             interfaces.JOINT_COMMANDS.name,
-            lambda _m: self.commands.append(time.monotonic()),
+            lambda m: self.commands.append(m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec),
             interfaces.STREAM_QOS,
         )
         node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, interfaces.EVENT_QOS)
@@ -109,8 +110,12 @@ def test_start_plays_at_1khz_then_hold_and_stop(harness: Harness) -> None:
     assert ok, message
     harness.commands.clear()
     harness.spin_for(1.0)
-    stamps = np.array(harness.commands)
-    assert len(stamps) >= 500, f"{len(stamps)} joint_commands in 1 s"  # best effort through DDS on 2 busy cores
+    stamps = np.sort(harness.commands)
+    # Best effort through DDS to this test's own Python executor on 2 busy cores: the test may receive only a
+    # part, but consecutive samples it does receive are one cycle (1 ms) apart, which a slower loop cannot give.
+    assert len(stamps) >= 100, f"{len(stamps)} joint_commands in 1 s"
+    spacing = np.diff(stamps)
+    assert 0.5e-3 < np.percentile(spacing, 10) < 1.5e-3, f"spacing p10 {np.percentile(spacing, 10) * 1e3:.2f} ms"
     ok, message = call_trigger(harness.node, "/stabilizer/hold", timeout_s=2.0)
     assert (ok, message) == (True, "holding")
     harness.spin_for(1.2)
