@@ -45,6 +45,7 @@ def test_experiment_runs_end_to_end_without_falling(experiment: tuple[subprocess
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     assert "fast_squats: completed" in result.stdout
     assert "planned now" in result.stdout
+    assert f"ROS_DOMAIN_ID={os.environ['ROS_DOMAIN_ID']} (chosen)" in result.stdout  # the user's, not a lease
 
 
 def test_bag_holds_the_suite_streams(experiment: tuple[subprocess.CompletedProcess[str], Path]) -> None:

@@ -11,6 +11,7 @@ from typing import Any
 
 from rh5_bringup.launcher import Bringup, SuiteRun, load_bringup
 from rh5_bringup.session import SuiteSession, run_dir
+from rh5_msgs_py.ros_env import chosen_domain_id
 
 DEFAULT_LOG_ROOT = Path(".ros") / "log"
 
@@ -69,11 +70,20 @@ def _call_until_success(node: Any, kind: Any, service: str, request: Any, timeou
         node.destroy_client(client)
 
 
-def up(bringup: Bringup, duration_s: float | None, log_root: Path, start: bool = False) -> int:
-    """Start the suite, wait until every node is in the graph, run, stop cleanly and report."""
-    with SuiteSession(bringup, run_dir(log_root)) as session:
+def up(
+    bringup: Bringup,
+    duration_s: float | None,
+    log_root: Path,
+    start: bool = False,
+    domain: tuple[int | None, str] = (None, "leased: free on this machine"),
+) -> int:
+    """Start the suite, wait until every node is in the graph, run, stop cleanly and report.
+
+    ``domain``: the ROS_DOMAIN_ID to run in and where it came from (``chosen_domain_id``).
+    """
+    with SuiteSession(bringup, run_dir(log_root), domain_id=domain[0]) as session:
         run = session.run
-        print(f"rh5 up: ROS_DOMAIN_ID={run.domain_id}, logs in {run.log_dir}", flush=True)
+        print(f"rh5 up: ROS_DOMAIN_ID={run.domain_id} ({domain[1]}), logs in {run.log_dir}", flush=True)
         missing = session.start()
         names = bringup.node_names()
         if missing:
@@ -124,6 +134,7 @@ def experiment(args: argparse.Namespace) -> int:
         if set(node_parameters) - nodes:
             msg = f"--param: no nodes {sorted(set(node_parameters) - nodes)} in the bringup (have {sorted(nodes)})"
             raise ValueError(msg)
+        domain_id, _ = chosen_domain_id(args.domain_id)
     except (ValueError, KeyError, MotionError, UsageError) as err:
         print(f"rh5 experiment: {err}", file=sys.stderr)
         return 2
@@ -138,6 +149,7 @@ def experiment(args: argparse.Namespace) -> int:
         report=not args.no_report,
         node_parameters=node_parameters,
         composed=not args.separate,
+        domain_id=domain_id,
     )
     try:
         result = run_experiment(settings, progress=lambda text: print(f"rh5 experiment: {text}", flush=True))
@@ -164,6 +176,11 @@ def report(args: argparse.Namespace) -> int:
 SEPARATE_HELP = (
     "run the driver, mapper and stabilizer as three processes linked by topics (development) instead of the "
     "control process's one real-time cycle"
+)
+
+
+DOMAIN_HELP = (
+    "ROS_DOMAIN_ID of the run (default: ROS_DOMAIN_ID of the environment when set, else one free on this machine)"
 )
 
 
@@ -197,6 +214,8 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="NODE.KEY=VALUE",
         help="node parameter, e.g. stabilizer.balance_correction=true",
     )
+    for sub in (up_parser, exp):
+        sub.add_argument("--domain-id", type=int, default=None, help=DOMAIN_HELP)
     rep = commands.add_parser("report", help="write the report of a recorded experiment bag")
     rep.add_argument("bag", type=Path, help="rosbag2 folder")
     rep.add_argument("--joints", default="", help="extra joints to plot, comma separated")
@@ -211,8 +230,13 @@ def main(argv: list[str] | None = None) -> int:
         if args.duration is not None and args.duration <= 0:
             print("rh5 up: --duration must be positive", file=sys.stderr)
             return 2
+        try:
+            domain = chosen_domain_id(args.domain_id)
+        except ValueError as err:
+            print(f"rh5 up: {err}", file=sys.stderr)
+            return 2
         bringup = replace(load_bringup(args.bringup).resolved(sim=args.sim), composed=not args.separate)
-        return up(bringup, args.duration, args.log_dir, start=args.start)
+        return up(bringup, args.duration, args.log_dir, start=args.start, domain=domain)
     if args.command == "experiment":
         return experiment(args)
     if args.command == "report":

@@ -63,6 +63,8 @@ class ExperimentSettings:
     """Extra node parameters by node name (applied last)."""
     composed: bool = True
     """Driver, mapper and stabilizer in the control process (False: three processes, for development)."""
+    domain_id: int | None = None
+    """ROS_DOMAIN_ID of the run (None: one leased free on this machine)."""
 
 
 @dataclass
@@ -282,8 +284,9 @@ def run_experiment(settings: ExperimentSettings, progress: Callable[[str], None]
     result = ExperimentResult(folder, trajectory, folder / "bag")
     folder.mkdir(parents=True)
     bringup = experiment_bringup(settings, trajectory, data, result.bag)
-    with SuiteSession(bringup, folder / "logs", observer_name="rh5_experiment") as session:
-        progress(f"experiment {settings.motion}: ROS_DOMAIN_ID={session.run.domain_id}, folder {folder}")
+    with SuiteSession(bringup, folder / "logs", "rh5_experiment", settings.domain_id) as session:
+        chosen = "leased: free on this machine" if settings.domain_id is None else "chosen"
+        progress(f"experiment {settings.motion}: ROS_DOMAIN_ID={session.run.domain_id} ({chosen}), folder {folder}")
         missing = session.start()
         if missing:
             msg = (  # before closing: closing stops the nodes that are still starting

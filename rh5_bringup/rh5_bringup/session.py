@@ -29,9 +29,11 @@ class SuiteSession:
     Ctrl-C in the middle of a step lets the caller finish cleanly.
     """
 
-    def __init__(self, bringup: Bringup, log_dir: Path, observer_name: str = "rh5_launcher") -> None:
+    def __init__(
+        self, bringup: Bringup, log_dir: Path, observer_name: str = "rh5_launcher", domain_id: int | None = None
+    ) -> None:
         self.bringup = bringup
-        self.run = SuiteRun(bringup, log_dir)
+        self.run = SuiteRun(bringup, log_dir, domain_id)  # None: a domain leased free on this machine
         self.stop_requested = False
         self.exit_codes: dict[str, int] = {}
         self._previous = {sig: signal.signal(sig, self._request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}

@@ -43,14 +43,46 @@ def apply_safe_defaults(env: MutableMapping[str, str] | None = None) -> MutableM
 
 
 def suite_environment(domain_id: int, log_dir: Path, base: Mapping[str, str] | None = None) -> dict[str, str]:
-    """Return the environment for a child process of one run: safe defaults, its domain and log folder."""
+    """Return the environment for a child process of one run: safe defaults, its domain and log folder.
+
+    ``log_dir`` becomes ROS_LOG_DIR (where rcl writes its log files) unless ``base`` (default: os.environ)
+    already names one: the user's choice is kept.
+    """
     env = dict(os.environ if base is None else base)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env["ROS_DOMAIN_ID"] = str(domain_id)
-    env["ROS_LOG_DIR"] = str(log_dir)
+    env["ROS_LOG_DIR"] = env.get("ROS_LOG_DIR") or str(log_dir)
     env["PYTHONUNBUFFERED"] = "1"
     apply_safe_defaults(env)
     return env
+
+
+MAX_DOMAIN_ID = 232
+"""The largest ROS_DOMAIN_ID ROS 2 accepts (its ports must fit in 16 bits); 0..101 are safe on Linux."""
+
+
+def chosen_domain_id(flag: int | None, env: Mapping[str, str] | None = None) -> tuple[int | None, str]:
+    """The domain a run must use and where that came from: ``flag`` (``--domain-id``), else ROS_DOMAIN_ID of
+    ``env`` (default: os.environ), else None (lease a free one: ``DomainLease``).
+
+    :raises ValueError: the value is not an integer in 0..232, with the reason.
+    """
+    env = os.environ if env is None else env
+    if flag is not None:
+        value, source = str(flag), "--domain-id"
+    elif env.get("ROS_DOMAIN_ID", "").strip():
+        value, source = env["ROS_DOMAIN_ID"].strip(), "ROS_DOMAIN_ID of the environment"
+    else:
+        return None, "leased: free on this machine"
+    try:
+        domain_id = int(value)
+    except ValueError:
+        msg = f"{source}: {value!r} is not an integer domain id (0..{MAX_DOMAIN_ID})"
+        raise ValueError(msg) from None
+    if not 0 <= domain_id <= MAX_DOMAIN_ID:
+        msg = f"{source}: {domain_id} is outside the ROS domain ids 0..{MAX_DOMAIN_ID}"
+        raise ValueError(msg)
+    return domain_id, source
 
 
 class DomainLease:
