@@ -46,6 +46,12 @@ def test_experiment_runs_end_to_end_without_falling(experiment: tuple[subprocess
     assert "fast_squats: completed" in result.stdout
     assert "planned now" in result.stdout
     assert f"ROS_DOMAIN_ID={os.environ['ROS_DOMAIN_ID']} (chosen)" in result.stdout  # the user's, not a lease
+    # Into a pipe (a log), progress is lines, not carriage returns: the planning bar ends with its verdict, and
+    # the motion's status line appears once per state (and every few seconds), not once per 0.1 s.
+    assert "\r" not in result.stderr
+    assert re.search(r"^planning fast_squats \[#+\.*\] it \d+/\d+ .* converged$", result.stderr, re.MULTILINE)
+    status_lines = [line for line in result.stderr.splitlines() if line.startswith("fast_squats: ")]
+    assert 2 <= len(status_lines) < 40, status_lines
 
 
 def test_bag_holds_the_suite_streams(experiment: tuple[subprocess.CompletedProcess[str], Path]) -> None:

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 from rh5_bringup.launcher import Bringup, load_bringup
 from rh5_bringup.session import SuiteSession, run_dir
 from rh5_msgs_py import interfaces
+from rh5_msgs_py.progress import LiveLine
 
 if TYPE_CHECKING:
     from rh5_msgs_py.trajectory_file import TrajectoryData
@@ -38,6 +39,8 @@ FALL_HEIGHT_FRACTION = 0.6
 PLAY_SLACK_S = 30.0
 """Ramp-in and slack on top of the trajectory's duration before the experiment times out: in simulated time
 when the physics publishes it (the simulation runs slower than real time), else in wall time."""
+STATUS_LOG_INTERVAL_S = 5.0
+"""Written to a log rather than a terminal, the motion's status line repeats at most this often (s)."""
 SIM_STALL_S = 20.0
 """The experiment also times out when the simulated time has not advanced for this long (wall time)."""
 
@@ -94,8 +97,9 @@ def trajectory_key(motion: str, overrides: Mapping[str, Any]) -> str:
     return hashlib.sha256(blob).hexdigest()[:12]
 
 
-def planned_trajectory(settings: ExperimentSettings, progress: Callable[[str], None] = print) -> tuple[Path, bool]:
-    """The motion's trajectory file: from the cache (out/trajectories) or solved now; returns (path, cached)."""
+def planned_trajectory(settings: ExperimentSettings) -> tuple[Path, bool]:
+    """The motion's trajectory file: from the cache (out/trajectories) or solved now (a progress bar on stderr);
+    returns (path, cached)."""
     cache = settings.output_root / "trajectories"
     path = cache / f"{settings.motion}-{trajectory_key(settings.motion, settings.overrides)}.npz"
     if path.exists() and not settings.replan:
@@ -103,20 +107,13 @@ def planned_trajectory(settings: ExperimentSettings, progress: Callable[[str], N
     import crocoddyl  # noqa: F401, PLC0415 (before pinocchio, see design/crocoddyl_wheels.md)
 
     from rh5_planner.motions import get_motion  # noqa: PLC0415
+    from rh5_planner.plan_cli import ProgressBar  # noqa: PLC0415
     from rh5_planner.problem import SolverSettings, solve  # noqa: PLC0415
 
-    started = time.monotonic()
-
-    def report(iteration: int, cost: float, stop: float) -> None:
-        progress(
-            f"planning {settings.motion}: iteration {iteration}, cost {cost:.4g}, stop {stop:.2e}, "
-            f"{time.monotonic() - started:.1f} s"
-        )
-
-    result = solve(
-        get_motion(settings.motion, dict(settings.overrides)),
-        SolverSettings(max_iterations=settings.max_iterations, callback=report),
-    )
+    solver = SolverSettings(max_iterations=settings.max_iterations)
+    bar = ProgressBar(solver.max_iterations, solver.stop_threshold, label=f"planning {settings.motion} ")
+    result = solve(get_motion(settings.motion, dict(settings.overrides)), replace(solver, callback=bar))
+    bar.finish("converged" if result.converged else "NOT converged")
     if not result.converged:
         log = result.solver_log
         msg = f"{settings.motion} did not converge ({log.get('iterations')} iterations, stop {log.get('stop')})"
@@ -246,30 +243,33 @@ def _play(
     _call(session, "stabilizer", "start", progress)
     started, started_sim = time.monotonic(), monitor.sim_time_s
     finished_at: float | None = None
-    while not session.stop_requested:
-        session.sleep(0.1)
-        now = time.monotonic()
-        fell = (
-            standing_z is not None and monitor.base_z is not None and monitor.base_z < FALL_HEIGHT_FRACTION * standing_z
-        )
-        z = f", base z {monitor.base_z:.3f} m" if monitor.base_z is not None else ""
-        if started_sim is not None and monitor.sim_time_s is not None:
-            z = f" (simulated {monitor.sim_time_s - started_sim:5.1f} s){z}"
-        sys.stderr.write(f"\r{settings.motion}: {monitor.state:<9} {now - started:6.1f} s{z}   ")
-        sys.stderr.flush()
-        if fell:
-            return "fell", True
-        if session.crashed():
-            return f"nodes stopped on their own: {session.crashed()}", False
-        if monitor.state in ("holding", "stopped") and finished_at is None:
-            finished_at = now
-            if "finished" not in monitor.reason:
-                return f"stabilizer {monitor.state}: {monitor.reason}", False
-        if finished_at is not None and now - finished_at >= settings.hold_after_s:
-            return "completed", False
-        if monitor.timed_out(started, started_sim, duration_s + PLAY_SLACK_S):
-            return f"timed out in state {monitor.state}", False
-    return "interrupted", False
+    status = LiveLine(interval_s=STATUS_LOG_INTERVAL_S)  # live on a terminal, a line per state and 5 s in a log
+    try:
+        while not session.stop_requested:
+            session.sleep(0.1)
+            now = time.monotonic()
+            low = FALL_HEIGHT_FRACTION * standing_z if standing_z is not None else None
+            fell = low is not None and monitor.base_z is not None and monitor.base_z < low
+            z = f", base z {monitor.base_z:.3f} m" if monitor.base_z is not None else ""
+            if started_sim is not None and monitor.sim_time_s is not None:
+                z = f" (simulated {monitor.sim_time_s - started_sim:5.1f} s){z}"
+            status.show(f"{settings.motion}: {monitor.state:<9} {now - started:6.1f} s{z}", key=monitor.state)
+            if fell:
+                return "fell", True
+            if session.crashed():
+                return f"nodes stopped on their own: {session.crashed()}", False
+            if monitor.state in ("holding", "stopped") and finished_at is None:
+                finished_at = now
+                if "finished" not in monitor.reason:
+                    return f"stabilizer {monitor.state}: {monitor.reason}", False
+            if finished_at is not None and now - finished_at >= settings.hold_after_s:
+                return "completed", False
+            if monitor.timed_out(started, started_sim, duration_s + PLAY_SLACK_S):
+                return f"timed out in state {monitor.state}", False
+        return "interrupted", False
+    finally:
+        if status.last:
+            status.finish()
 
 
 def run_experiment(settings: ExperimentSettings, progress: Callable[[str], None] = print) -> ExperimentResult:
@@ -277,7 +277,7 @@ def run_experiment(settings: ExperimentSettings, progress: Callable[[str], None]
     from rh5_msgs_py.trajectory_file import load_trajectory  # noqa: PLC0415
 
     folder = run_dir(settings.output_root / "experiments", settings.motion)
-    trajectory, cached = planned_trajectory(settings, progress)
+    trajectory, cached = planned_trajectory(settings)
     progress(f"trajectory: {trajectory} ({'cached' if cached else 'planned now'})")
     data = load_trajectory(trajectory)
     duration_s = float(data.times[-1])

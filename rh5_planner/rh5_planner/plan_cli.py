@@ -25,6 +25,8 @@ from typing import IO, TYPE_CHECKING, Any, Final
 
 import yaml
 
+from rh5_msgs_py.progress import LiveLine
+
 from .motions import MOTIONS, VERIFIED_MOTIONS, MotionError, MotionSpec, get_motion
 
 if TYPE_CHECKING:
@@ -77,9 +79,7 @@ class ProgressBar:
         self.interval_s = interval_s
         self.start = time.perf_counter()
         self._first_stop: float | None = None
-        self._last_write = -math.inf
-        self._last_line = ""
-        self._tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self._line = LiveLine(self.stream, interval_s)
 
     def fraction(self, iteration: int, stop: float) -> float:
         """How far the solve is, 0..1."""
@@ -96,34 +96,20 @@ class ProgressBar:
             self._first_stop = stop
         filled = round(self.width * self.fraction(iteration, stop))
         elapsed = time.perf_counter() - self.start
-        self._last_line = (
+        self._line.show(
             f"{self.label}[{'#' * filled}{'.' * (self.width - filled)}] it {iteration}/{self.max_iterations}  "
             f"cost {cost:.4g}  stop {stop:.2e}  {elapsed:.1f} s"
         )
-        now = time.perf_counter()
-        if self._tty:
-            self.stream.write("\r" + self._last_line)
-            self.stream.flush()
-        elif now - self._last_write >= self.interval_s:
-            self.stream.write(self._last_line + "\n")
-            self.stream.flush()
-            self._last_write = now
 
     def restart(self) -> None:
         """Start over for the next solve (elapsed time, stop-criterion scale, last line)."""
         self.start = time.perf_counter()
         self._first_stop = None
-        self._last_write = -math.inf
-        self._last_line = ""
+        self._line = LiveLine(self.stream, self.interval_s)
 
     def finish(self, message: str) -> None:
-        """End the bar with the final line and ``message``."""
-        if not self._last_line:
-            self.stream.write(f"{self.label}{message}\n")
-        else:  # the final state with the verdict, complete in one line even if a log already has its numbers
-            prefix = "\r" if self._tty else ""
-            self.stream.write(f"{prefix}{self._last_line}  {message}\n")
-        self.stream.flush()
+        """End the bar with the final line and ``message`` (complete in one line even where a log has its numbers)."""
+        self._line.finish(f"{self._line.last}  {message}" if self._line.last else f"{self.label}{message}")
 
 
 def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
