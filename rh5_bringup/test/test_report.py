@@ -387,6 +387,22 @@ def test_clock_moves_every_time_axis_onto_simulated_time() -> None:
     assert "0.50 x real time" in moved.notes[-1]
 
 
+def test_stream_rates_are_on_the_wall_clock_when_the_time_axis_is_simulated() -> None:
+    """A 1 kHz stream recorded while the simulation ran at 0.25 x real time is 1 kHz, not 4 kHz of simulated time."""
+    from rh5_bringup.report.load import PoseSeries, Recording, on_simulated_time
+    from rh5_bringup.report.metrics import stream_timing
+
+    t = np.arange(0.0, 2.0, 1e-3)
+    pose = PoseSeries("/sim/base_pose", t, np.zeros((len(t), 3)), np.tile([0.0, 0.0, 0.0, 1.0], (len(t), 1)), "header")
+    rec = Recording(Path("bag"), 0, 2.0, {}, base_pose=pose)
+    clock_t = np.arange(0.0, 2.01, 0.01)
+    moved = on_simulated_time(rec, clock_t, (clock_t * 0.25e9).astype(np.int64))
+    assert moved.base_pose.t[-1] == pytest.approx(0.5, abs=2e-3)  # the report's time axis: simulated
+    timing = stream_timing(moved.base_pose)
+    assert timing.rate_hz == pytest.approx(1000.0, rel=1e-3)
+    assert timing.period_p50_ms == pytest.approx(1.0, rel=1e-3)
+
+
 def test_planned_base_is_the_one_published_with_the_planned_joints() -> None:
     """Under load the trajectory's base message can reach the recorder after playback started; the report must
     still compare with it, not with the planner's earlier 2-sample hold."""

@@ -48,6 +48,8 @@ class JointSeries:
     velocity: FloatArray
     effort: FloatArray
     time_source: str
+    wall_t: FloatArray | None = None
+    """The times on the recorder's (wall) clock where ``t`` was moved onto simulated time, else None."""
 
     def index(self, name: str) -> int | None:
         """Column of ``name`` (None if the stream never carried it)."""
@@ -63,6 +65,8 @@ class PoseSeries:
     position: FloatArray
     quaternion_xyzw: FloatArray
     time_source: str
+    wall_t: FloatArray | None = None
+    """As JointSeries.wall_t."""
 
 
 @dataclass(frozen=True)
@@ -471,7 +475,11 @@ def on_simulated_time(rec: Recording, clock_t: FloatArray, clock_ns: NDArray[np.
         sim_speed=float(speed),
     )
     timed = ("joint_commands", "joint_states", "actuator_commands", "actuator_states", "base_pose")
-    for key in (*timed, "wrench_left", "wrench_right", "estopped"):
+    for key in timed:  # their stream rates stay measurable on the clock the loops ran on
+        series = getattr(rec, key)
+        if series is not None:
+            setattr(out, key, replace(series, t=remap(series.t), wall_t=series.t))
+    for key in ("wrench_left", "wrench_right", "estopped"):
         series = getattr(rec, key)
         if series is not None:
             setattr(out, key, replace(series, t=remap(series.t)))

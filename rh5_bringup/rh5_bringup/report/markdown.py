@@ -260,7 +260,12 @@ def _timing_section(a: Analysis) -> list[str]:
         lines.append(f"Loop diagnostics {NOT_RECORDED}.")
     if a.recording.sim_speed is not None:
         lines += ["", f"Simulation speed: {a.recording.sim_speed:.3f} x real time (simulated s per wall-clock s)."]
-    lines += ["", "Recorded streams (gaps include messages the best-effort recording dropped):", ""]
+    lines += [
+        "",
+        "Recorded streams, rates and periods on the wall clock the loops ran on (gaps include messages the "
+        "best-effort recording dropped):",
+        "",
+    ]
     lines += table(
         ["topic", "messages", "rate [Hz]", "period p50 [ms]", "period p99 [ms]", "max gap [ms]", "times from"],
         [

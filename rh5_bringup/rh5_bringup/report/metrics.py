@@ -370,8 +370,9 @@ class StreamTiming:
 
 
 def stream_timing(series: JointSeries | PoseSeries) -> StreamTiming:
-    """Sample periods of a stream (from its times: sender stamps where the publisher set them)."""
-    t = series.t
+    """Sample periods of a stream on the wall clock (from its times: sender stamps where the publisher set them),
+    also when the report's time axis is the simulation's: a 1 kHz loop is 1 kHz of wall time."""
+    t = series.wall_t if series.wall_t is not None else series.t
     if len(t) < 2:
         return StreamTiming(series.topic, len(t), np.nan, np.nan, np.nan, np.nan, series.time_source)
     periods = np.diff(t) * 1e3
