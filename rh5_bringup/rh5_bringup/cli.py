@@ -9,7 +9,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from rh5_bringup.launcher import Bringup, SuiteRun, load_bringup
+from rh5_bringup.launcher import Bringup, SuiteRun, check_parameter_names, load_bringup
 from rh5_bringup.session import SuiteSession, run_dir
 from rh5_msgs_py.ros_env import chosen_domain_id
 
@@ -130,10 +130,11 @@ def experiment(args: argparse.Namespace) -> int:
         if args.out.exists() and not args.out.is_dir():
             msg = f"--out {args.out}: not a folder"
             raise ValueError(msg)
-        nodes = {n.name for n in load_bringup(args.bringup).nodes}
-        if set(node_parameters) - nodes:
-            msg = f"--param: no nodes {sorted(set(node_parameters) - nodes)} in the bringup (have {sorted(nodes)})"
-            raise ValueError(msg)
+        try:
+            check_parameter_names(load_bringup(args.bringup), node_parameters)
+        except ValueError as err:
+            msg = f"--param: {err}"
+            raise ValueError(msg) from None
         domain_id, _ = chosen_domain_id(args.domain_id)
     except (ValueError, KeyError, MotionError, UsageError) as err:
         print(f"rh5 experiment: {err}", file=sys.stderr)

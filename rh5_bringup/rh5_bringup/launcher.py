@@ -23,6 +23,7 @@ from typing import Any
 import yaml
 
 from rh5_msgs_py.node_runtime import parse_summary
+from rh5_msgs_py.parameters import load_spec
 from rh5_msgs_py.ros_env import DomainLease, suite_environment
 
 STOP_GRACE_S = 10.0
@@ -164,6 +165,28 @@ def load_bringup(path: Path | None = None) -> Bringup:
                 msg = f"launch argument {argument.name}={value} implies parameters of {unknown}: no such node"
                 raise ValueError(msg)
     return bringup
+
+
+def parameter_names(node: NodeSpec) -> set[str]:
+    """The parameters ``node`` declares: those of its spec file (``params/<name>.yaml`` in its package,
+    rh5_msgs_py.parameters) and rclpy's ``use_sim_time``."""
+    return {spec.name for spec in load_spec(node.package, f"params/{node.name}.yaml")} | {"use_sim_time"}
+
+
+def check_parameter_names(bringup: Bringup, parameters: Mapping[str, Mapping[str, Any]]) -> None:
+    """Refuse parameters for nodes the bringup does not run, or names those nodes do not have.
+
+    :raises ValueError: naming what is unknown and what is valid.
+    """
+    nodes = {n.name: n for n in bringup.nodes}
+    if unknown_nodes := sorted(set(parameters) - set(nodes)):
+        msg = f"no nodes {unknown_nodes} in the bringup (have {sorted(nodes)})"
+        raise ValueError(msg)
+    for name, values in parameters.items():
+        valid = parameter_names(nodes[name])
+        if unknown := sorted(set(values) - valid):
+            msg = f"node {name!r} has no parameter{'s' if len(unknown) > 1 else ''} {unknown}; valid: {sorted(valid)}"
+            raise ValueError(msg)
 
 
 def node_command(node: NodeSpec, namespace: str = "") -> list[str]:

@@ -158,6 +158,8 @@ def declare_parameters(node: Node, specs: Iterable[ParamSpec]) -> None:
             msg = f"parameter {spec.name!r}: launch value is invalid: {problem}"
             raise ValueError(msg)
 
+    refuse_unknown_overrides(node, by_name)
+
     def validate(params: list[Parameter]) -> SetParametersResult:
         for param in params:
             spec = by_name.get(param.name)
@@ -166,6 +168,23 @@ def declare_parameters(node: Node, specs: Iterable[ParamSpec]) -> None:
         return SetParametersResult(successful=True)
 
     node.add_on_set_parameters_callback(validate)
+
+
+def refuse_unknown_overrides(node: Node, specs: Mapping[str, ParamSpec]) -> None:
+    """Refuse launch values (``-p``, ``--params-file``) for names the node does not have: a misspelt name would
+    otherwise be dropped silently and its default used.
+
+    :raises ValueError: naming the unknown names and the valid ones.
+    """
+    # rclpy keeps the launch values addressed to this node (by its name, or ``/**``) until they are declared.
+    overrides = getattr(node, "_parameter_overrides", {})
+    unknown = sorted(name for name in overrides if not node.has_parameter(name))
+    if unknown:
+        msg = (
+            f"unknown parameter{'s' if len(unknown) > 1 else ''} {unknown} for node {node.get_name()!r}; "
+            f"valid: {sorted(specs)} (and rclpy's use_sim_time)"
+        )
+        raise ValueError(msg)
 
 
 def parameter_values(node: Node, specs: Iterable[ParamSpec]) -> dict[str, Any]:
