@@ -109,6 +109,7 @@ class DriverCore:
         self.heard_cycle = np.zeros(n, dtype=np.int64)
         self.silence_cycles = 0  # set from the period on the first cycle
         self.started_ns = 0
+        self._period_ns = 0
         self.counts: Counter[str] = Counter()
         self.clamped: Counter[str] = Counter()
         self.mode = CommandMode.HOLD
@@ -198,7 +199,14 @@ class DriverCore:
     def _start(self, now_ns: int, period_ns: int) -> None:
         if not self.started_ns:
             self.started_ns = now_ns
+            self._period_ns = period_ns
             self.silence_cycles = max(1, -(-self.silence_timeout_ns // period_ns))
+
+    def set_silence_timeout(self, timeout_ns: int) -> None:
+        """Change the silence rule at run time: from the next cycle on, in time and in cycles."""
+        self.silence_timeout_ns = timeout_ns
+        if self.started_ns:
+            self.silence_cycles = max(1, -(-timeout_ns // self._period_ns))
 
     def cycle(self, now_ns: int, period_ns: int) -> ActuatorReadings:
         """The stand-alone driver's cycle: send the latest command (``write``), then take the telemetry (``read``).

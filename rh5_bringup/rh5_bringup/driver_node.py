@@ -85,6 +85,13 @@ class DriverNode(SuiteNode):
         self.create_service(Trigger, interfaces.ESTOP_SERVICE, self._on_estop)
         self.create_service(Trigger, interfaces.RESET_ESTOP_SERVICE, self._on_reset_estop)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
+        core = self.core
+        self.apply_live(
+            {
+                "command_timeout_s": lambda s: lambda: setattr(core, "command_timeout_ns", int(s * 1e9)),
+                "board_silence_timeout_s": lambda s: lambda: core.set_silence_timeout(int(s * 1e9)),
+            }
+        )
         self.loop: DeadlineLoop | None = None
         if not composed:
             self.loop = self.start_loop(params["rate_hz"], self._tick, "driver-1kHz", params["realtime_priority"])

@@ -26,6 +26,7 @@ joints mid-step; after 0.5 s of silence the boards tick on their own again.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -84,7 +85,16 @@ class SimHardwareNode(SuiteNode):
         if self.physics is not None:  # no replay of a stall: the simulation falls behind instead
             self.emulator.max_catch_up_ns = PHYSICS_MAX_CATCH_UP_NS
             self.emulator.pace_by_commands = params["pace_by_commands"]
-        self.add_post_set_parameters_callback(self._update_faults)
+        update = lambda _: self._update_faults  # noqa: E731 (the faults are rebuilt from all their parameters)
+        self.apply_live(
+            {
+                "drop_rate": update,
+                "delay_s": update,
+                "corrupt_crc_rate": update,
+                "sensor_noise_std": update,
+                "silent_boards": self._check_silent_boards,
+            }
+        )
         self.server = BoardsServer(self.emulator)
         self.context.on_shutdown(self.server.stop)
         self.server.start()
@@ -167,18 +177,22 @@ class SimHardwareNode(SuiteNode):
             to_time_msg(truth.sim_ns, clock.clock)
             self._publish_clock(clock)
 
-    def _update_faults(self, _changed: list[Any]) -> None:
-        """Fault-injection parameters act at once (the spec callback has already validated them)."""
+    def _check_silent_boards(self, names: list[str]) -> Callable[[], None]:
+        """Refuse actuator names the robot does not have (a misspelt board would silently stay alive)."""
+        if unknown := set(names) - set(ACTUATOR_NAMES):
+            msg = f"unknown actuators {sorted(unknown)}"
+            raise ValueError(msg)
+        return self._update_faults
+
+    def _update_faults(self) -> None:
+        """Fault-injection parameters act at once (validated before they were accepted)."""
         params = self.params
-        unknown = set(params["silent_boards"]) - set(ACTUATOR_NAMES)
-        if unknown:
-            self.get_logger().error(f"silent_boards: unknown actuators {sorted(unknown)} ignored")
         self.emulator.set_faults(
             Faults(
                 drop_rate=params["drop_rate"],
                 delay_s=params["delay_s"],
                 corrupt_crc_rate=params["corrupt_crc_rate"],
-                silent_boards=frozenset(params["silent_boards"]) & set(ACTUATOR_NAMES),
+                silent_boards=frozenset(params["silent_boards"]),
                 sensor_noise_std=params["sensor_noise_std"],
             )
         )

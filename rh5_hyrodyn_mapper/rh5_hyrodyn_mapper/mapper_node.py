@@ -15,6 +15,7 @@ from typing import Any, Final
 
 from std_msgs.msg import String
 
+from rh5_hyrodyn_mapper.kinematics import build_submechanisms
 from rh5_hyrodyn_mapper.mapper_core import MapperCore
 from rh5_hyrodyn_mapper.mapping import RobotMapper
 from rh5_hyrodyn_mapper.model.urdf import generate_urdf
@@ -36,9 +37,8 @@ class MapperNode(SuiteNode):
 
     def __init__(self, *, composed: bool = False) -> None:
         super().__init__(interfaces.MAPPER_NODE, "rh5_hyrodyn_mapper", "params/mapper.yaml")
-        self.mapper = RobotMapper(max_condition=self.params["max_condition_number"])
         self.core = MapperCore(
-            self.mapper, clamp_to_limits=self.params["clamp_to_limits"], on_reject=self._log_rejection
+            self._build_mapper(), clamp_to_limits=self.params["clamp_to_limits"], on_reject=self._log_rejection
         )
         self._joint_codec_in = JointStateCodec(JOINT_NAMES, what="joint_commands")
         self._actuator_codec_in = JointStateCodec(ACTUATOR_NAMES, what="actuator_states")
@@ -53,13 +53,31 @@ class MapperNode(SuiteNode):
             self.subscribe_stream(interfaces.JOINT_COMMANDS, self._on_joint_commands)
             self.subscribe_stream(interfaces.ACTUATOR_STATES, self._on_actuator_states)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
-        self.add_post_set_parameters_callback(self._on_parameters_set)
+        core = self.core
+        self.apply_live(  # the next map uses the new setting; the loop never waits for it
+            {
+                "clamp_to_limits": lambda on: lambda: setattr(core, "clamp_to_limits", bool(on)),
+                "max_condition_number": lambda _: self._swap_mapper,
+                "fk_tolerance": lambda _: self._swap_mapper,
+                "fk_max_iterations": lambda _: self._swap_mapper,
+            }
+        )
 
-    def _on_parameters_set(self, parameters: list[Any]) -> None:
-        """Apply an accepted ``clamp_to_limits`` to the core at once (the spec's check ran before)."""
-        for parameter in parameters:
-            if parameter.name == "clamp_to_limits":
-                self.core.clamp_to_limits = bool(parameter.value)
+    @property
+    def mapper(self) -> RobotMapper:
+        """The maps the node uses now."""
+        return self.core.mapper
+
+    def _build_mapper(self) -> RobotMapper:
+        """The robot's maps with this node's singularity guard and forward-kinematics stop criteria."""
+        params = self.params
+        newton = {"tolerance": params["fk_tolerance"], "max_iterations": params["fk_max_iterations"]}
+        models = tuple(m.with_newton(**newton) if hasattr(m, "with_newton") else m for m in build_submechanisms())
+        return RobotMapper(models, max_condition=params["max_condition_number"])
+
+    def _swap_mapper(self) -> None:
+        """Rebuild the maps from the accepted parameters (a few ms) and hand them to the core in one assignment."""
+        self.core.mapper = self._build_mapper()
 
     def _log_rejection(self, topic: str, reason: str) -> None:
         self.get_logger().warning(f"rejected a {topic} message: {reason}", throttle_duration_sec=1.0)

@@ -10,9 +10,13 @@ from __future__ import annotations
 
 import time
 from collections import deque
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
 from typing import Any, Final
 
 import numpy as np
+import yaml
 from std_srvs.srv import Trigger
 
 from rh5_hyrodyn_mapper.model import joint_limits
@@ -64,11 +68,9 @@ class StabilizerNode(SuiteNode):
         params = self.params
         limits = joint_limits()
         self.velocity_limits = np.asarray(limits.velocity_max)
-        self.balance = None
+        self.balance: AnkleBalanceCorrection | None = None
         if params["balance_correction"]:
-            self.balance = AnkleBalanceCorrection(
-                BALANCE_GAIN, BALANCE_MAX_CORRECTION, int(params["state_timeout_s"] * 1e9) * 10, ankle_axes_world()
-            )
+            self.balance = self._balance_correction(params["state_timeout_s"])
         self.events: deque[str] = deque(maxlen=50)
         self.core = StabilizerCore(
             load_gains(params["gains_file"] or None),
@@ -96,17 +98,68 @@ class StabilizerNode(SuiteNode):
         if not composed:
             self.subscribe_stream(interfaces.JOINT_STATES, self._on_joint_states)
             self.subscribe(interfaces.DRIVER_ESTOP, self._on_estop)
+        self._base_pose_subscription = None
         if self.balance is not None:
-            self.subscribe(interfaces.SIM_BASE_POSE, self._on_base_pose)
+            self._base_pose_subscription = self.subscribe(interfaces.SIM_BASE_POSE, self._on_base_pose)
         self.create_service(Trigger, interfaces.START_SERVICE, self._on_start)
         self.create_service(Trigger, interfaces.STOP_SERVICE, self._on_stop)
         self.create_service(Trigger, interfaces.HOLD_SERVICE, self._on_hold)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self.publish_status)
         if params["trajectory_file"]:
             self._load_file(params["trajectory_file"])
+        core = self.core
+        self.apply_live(  # reference swaps and attribute writes: the next update uses them, the loop never waits
+            {
+                "trajectory_file": self._check_trajectory_file,
+                "gains_file": self._check_gains_file,
+                "state_timeout_s": lambda s: lambda: self._set_safety(state_timeout_ns=int(s * 1e9)),
+                "max_tracking_error_rad": lambda e: lambda: self._set_safety(max_tracking_error=float(e)),
+                "rest_velocity_rad_s": lambda v: lambda: self._set_safety(rest_velocity=float(v)),
+                "ramp_max_velocity": lambda v: lambda: setattr(core, "ramp_max_velocity", float(v)),
+                "ramp_max_acceleration": lambda a: lambda: setattr(core, "ramp_max_acceleration", float(a)),
+                "balance_correction": lambda on: lambda: self._set_balance(bool(on)),
+            }
+        )
         self.loop: DeadlineLoop | None = None
         if not composed:
             self.loop = self.start_loop(params["rate_hz"], self._tick, "stabilizer-1kHz", params["realtime_priority"])
+
+    # --- parameters at run time ------------------------------------------------------------------------------------
+
+    def _check_trajectory_file(self, path: str) -> Callable[[], None] | None:
+        """A new trajectory file is loaded once accepted (refused now if it does not exist)."""
+        if not path:
+            return None
+        if not Path(path).is_file():
+            msg = f"no such file: {path}"
+            raise ValueError(msg)
+        return lambda: self._load_file(path)
+
+    def _check_gains_file(self, path: str) -> Callable[[], None]:
+        """The gains are read now (a bad file is refused with the reason) and take effect on the next update."""
+        try:
+            gains = load_gains(path or None)
+        except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as err:
+            msg = f"cannot use gains file {path!r}: {err}"
+            raise ValueError(msg) from None
+        return lambda: setattr(self.core, "gains", gains)
+
+    def _set_safety(self, **changes: float) -> None:
+        self.core.safety = replace(self.core.safety, **changes)
+
+    @staticmethod
+    def _balance_correction(state_timeout_s: float) -> AnkleBalanceCorrection:
+        return AnkleBalanceCorrection(
+            BALANCE_GAIN, BALANCE_MAX_CORRECTION, int(state_timeout_s * 1e9) * 10, ankle_axes_world()
+        )
+
+    def _set_balance(self, on: bool) -> None:
+        """Switch the ankle balance correction (it needs the simulated base pose, subscribed on first use)."""
+        if on and self.balance is None:
+            self.balance = self._balance_correction(self.params["state_timeout_s"])
+        if on and self._base_pose_subscription is None:
+            self._base_pose_subscription = self.subscribe(interfaces.SIM_BASE_POSE, self._on_base_pose)
+        self.core.correction = self.balance if on else None
 
     def _log_event(self, text: str) -> None:
         self.events.append(text)
@@ -242,7 +295,7 @@ class StabilizerNode(SuiteNode):
             values.update(self.loop.diagnostics())
         values.update({f"rms_error.{j}": round(float(e), 6) for j, e in zip(JOINT_NAMES, rms, strict=True)})
         values.update({f"max_error.{j}": round(float(e), 6) for j, e in zip(JOINT_NAMES, peak, strict=True)})
-        if self.balance is not None:
+        if self.core.correction is not None and self.balance is not None:
             values["balance_correction_active"] = self.balance.active
         level = (
             Level.WARN if self.core.state == State.HOLDING and "requested" not in self.core.last_reason else Level.OK

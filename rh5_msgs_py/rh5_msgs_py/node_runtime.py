@@ -10,10 +10,11 @@ from __future__ import annotations
 import json
 import sys
 from collections import Counter
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import rclpy
+from rcl_interfaces.msg import SetParametersResult
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -26,6 +27,8 @@ from rh5_msgs_py.realtime import RTPRIO_FIX, DeadlineLoop, RealtimeGrant
 from rh5_msgs_py.ros_env import apply_safe_defaults
 from rh5_msgs_py.streams import StreamThread
 
+Applier = Callable[[Any], Callable[[], None] | None]
+"""Checks a new parameter value (ValueError: refused) and returns what applies it once accepted."""
 SUMMARY_PREFIX = "RH5_SUMMARY "
 EXIT_BAD_START = 2
 
@@ -40,10 +43,51 @@ class SuiteNode(Node):
         self.seen: Counter[str] = Counter()
         self.sent: Counter[str] = Counter()
         self._streams: StreamThread | None = None
+        self.appliers: dict[str, Applier] | None = None
         self.status_gate: Callable[[], object] = lambda: None
         """Called before the node builds and publishes its /diagnostics status: a real-time loop of the process
         makes it wait for the loop's slack (a status is hundreds of microseconds of work under the interpreter
         lock)."""
+
+    def apply_live(self, appliers: Mapping[str, Applier]) -> None:
+        """Make every writable parameter take effect at run time, on the next cycle of whatever uses it.
+
+        ``appliers[name](value)`` runs while ROS decides on a set (after the spec's checks): it raises
+        ValueError to refuse the value with its reason, else returns what to do once the set is accepted (or
+        None). Each writable parameter of the spec needs one (a parameter that is only read at start-up must be
+        ``read_only`` in the spec); ``run_node`` refuses to start a node that leaves one out.
+        """
+        writable = {spec.name for spec in self.param_specs if not spec.read_only}
+        if set(appliers) != writable:
+            msg = (
+                f"{self.get_name()}: writable parameters without an applier {sorted(writable - set(appliers))}, "
+                f"appliers for no writable parameter {sorted(set(appliers) - writable)}"
+            )
+            raise RuntimeError(msg)
+        self.appliers = dict(appliers)
+        pending: list[Callable[[], None]] = []
+
+        def check(parameters: list[Any]) -> SetParametersResult:
+            pending.clear()
+            for parameter in parameters:
+                applier = self.appliers.get(parameter.name)
+                if applier is None:
+                    continue
+                try:
+                    action = applier(parameter.value)
+                except ValueError as err:
+                    pending.clear()
+                    return SetParametersResult(successful=False, reason=f"{parameter.name}: {err}")
+                if action is not None:
+                    pending.append(action)
+            return SetParametersResult(successful=True)
+
+        def apply(_parameters: list[Any]) -> None:
+            while pending:
+                pending.pop(0)()
+
+        self.add_on_set_parameters_callback(check)
+        self.add_post_set_parameters_callback(apply)
 
     @property
     def params(self) -> dict[str, Any]:
@@ -143,6 +187,10 @@ def run_node(factory: Callable[[], SuiteNode | Sequence[SuiteNode]], args: list[
     try:
         built = factory()
         nodes = [built] if isinstance(built, SuiteNode) else list(built)
+        for node in nodes:
+            if node.appliers is None and any(not spec.read_only for spec in node.param_specs):
+                msg = f"{node.get_name()}: writable parameters but no apply_live (a set would be ignored)"
+                raise RuntimeError(msg)
         executor = rclpy.get_global_executor()
         for node in nodes:
             executor.add_node(node)

@@ -173,7 +173,33 @@ class PlannerNode(SuiteNode):
         self._wake = self.create_guard_condition(lambda: None, callback_group=plan_group)
         self.create_service(Trigger, interfaces.PLAN_SERVICE, self._on_plan, callback_group=plan_group)
         self.create_service(Trigger, interfaces.LOAD_SERVICE, self._on_load)
+        # Every writable parameter is read by the next ~/plan or ~/load (which checks the set together);
+        # a motion the planner does not know is refused at once.
+        read_when_used = lambda _: None  # noqa: E731
+        self.apply_live(
+            {
+                "motion": self._check_motion,
+                **dict.fromkeys(
+                    (
+                        "motion_overrides",
+                        "output_dir",
+                        "trajectory_file",
+                        "max_iterations",
+                        "stop_threshold",
+                        "solver_threads",
+                    ),
+                    read_when_used,
+                ),
+            }
+        )
         self._publish_hold()
+
+    @staticmethod
+    def _check_motion(name: str) -> None:
+        try:
+            get_motion(name)
+        except MotionError as err:
+            raise ValueError(str(err)) from None
 
     # ------------------------------------------------------------------------------------------
     # publishing

@@ -20,6 +20,7 @@ inverse; Newton hands over the Jacobian of its converged iterate, which is exact
 
 from __future__ import annotations
 
+import copy
 import math
 from abc import abstractmethod
 from collections.abc import Sequence
@@ -130,6 +131,13 @@ class UniversalJointPlatform(ImmutableModel):
         self._jinv0 = tuple(np.linalg.inv(jac0).ravel().tolist())
         self._mode = math.copysign(1.0, det0)
         self._freeze()
+
+    def with_newton(self, *, tolerance: float, max_iterations: int) -> UniversalJointPlatform:
+        """The same unit with other forward-kinematics stop criteria (a new immutable model; this one is kept)."""
+        clone = copy.copy(self)
+        object.__setattr__(clone, "tolerance", float(tolerance))
+        object.__setattr__(clone, "max_iterations", int(max_iterations))
+        return clone
 
     # --- leg kernels (floats or arrays) ----------------------------------------------------------------------------
 
