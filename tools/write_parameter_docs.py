@@ -28,8 +28,10 @@ def render() -> str:
         "# Node parameters",
         "",
         "Generated from `<package>/<package>/params/<node>.yaml` by `tools/write_parameter_docs.py`; do not edit.",
-        "Set them at launch (`--ros-args -p name:=value`, or the bringup description) or, unless read-only,",
-        "at run time; a value outside its range or choices is refused with the reason.",
+        "Set them at launch (`--ros-args -p name:=value`, `--params-file rh5_bringup/config/<node>.params.yaml`,",
+        "or the bringup description) or, unless read-only, at run time, where they act from the node's next cycle.",
+        "A value outside its range or choices, or one the node cannot use, is refused with the reason; a name the",
+        "node does not have stops it at launch (exit code 2, with the valid names).",
     ]
     for node, package, executable in NODE_SPECS:
         parts += ["", f"## {node} (`ros2 run {package} {executable}`)", ""]
