@@ -261,6 +261,11 @@ class Transport(ABC):
             for frame in frames:
                 self.send_frame(frame)
             return
+        frames = frames if isinstance(frames, list) else list(frames)
+        total = sum(map(len, frames))
+        if total <= limit:  # the common case, a cycle's frames in one datagram
+            self._send_batch(frames, total)
+            return
         batch: list[bytes] = []
         size = 0
         for frame in frames:
