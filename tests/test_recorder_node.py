@@ -5,7 +5,7 @@ The test process publishes three 1 kHz JointState streams (best effort, as the s
 starts, numbering every stream message in ``position[0]``. After SIGINT the bag must hold exactly
 what the recorder received (its own count: nothing lost between DDS and the file), and nearly all
 of what was sent; after SIGKILL the MCAP must be readable up to its last chunk, and complete after
-recover_bag.
+``rh5 bag recover``, read in full by rosbags and by mcap's seeking reader.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from rosbags.highlevel import AnyReader
 
 from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_bringup.recorder_node import default_bag_folder, offered_qos, recording_qos
-from rh5_bringup.recording import mcap_file_of, recover_bag
+from rh5_bringup.recording import mcap_file_of
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec
 from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS
@@ -349,14 +349,44 @@ def test_a_killed_recorder_leaves_a_bag_readable_up_to_its_last_chunk(tmp_path: 
     assert all(n >= MIN_DELIVERED * sent_before for n in counts.values()), (counts, sent_before, sent["sent"])
     info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     assert 0 < info["message_count"] <= len(readable), "metadata.yaml describes what the file holds"
-    result = recover_bag(bag)
-    assert result.recovered
-    assert result.message_count == len(readable)
+    described = rh5("bag", "info", str(bag))
+    assert described.returncode == 0, described.stderr
+    assert "INCOMPLETE" in described.stdout
+    assert f"Messages:     {len(readable)}" in described.stdout
+    recovered = rh5("bag", "recover", str(bag))
+    assert recovered.returncode == 0, recovered.stderr
+    assert f"kept {len(readable)} messages" in recovered.stdout
+    # read completely, by both independent readers: every message of every whole chunk, in publisher order
     messages = bag_messages(bag)
     assert {t.lstrip("/"): len(m) for t, m in messages.items()} == counts
     for name in names:
         numbers = [int(msg.position[0]) for _, msg in messages[f"/{name}"]]
         assert numbers == sorted(set(numbers))
+    decoded, total = mcap_records(bag)
+    assert {t.lstrip("/"): len(m) for t, m in decoded.items()} == counts
+    assert total == len(readable)
+    assert [(m.channel_id, m.sequence, m.log_time) for m in sorted(readable, key=key)] == [
+        (m.channel_id, m.sequence, m.log_time) for m in sorted((m for ms in decoded.values() for m in ms), key=key)
+    ]
+    with mcap_file_of(bag).open("rb") as stream:
+        summary = make_reader(stream).get_summary()
+    assert summary is not None
+    assert {index.compression for index in summary.chunk_indexes} == {"zstd"}, "chunks are compressed by default"
+    again = rh5("bag", "recover", str(bag))
+    assert again.returncode == 0
+    assert "complete already" in again.stdout
+
+
+def key(message: Message) -> tuple[int, int, int]:
+    """Order messages of several readers alike."""
+    return message.channel_id, message.log_time, message.sequence
+
+
+def rh5(*args: str) -> subprocess.CompletedProcess[str]:
+    """Run the ``rh5`` command line of this environment."""
+    return subprocess.run(
+        [str(Path(sys.prefix) / "bin" / "rh5"), *args], capture_output=True, text=True, timeout=120, check=False
+    )
 
 
 # --- no processes -------------------------------------------------------------------------------------------------

@@ -1,4 +1,5 @@
-"""The ``rh5`` command line: start the suite (``rh5 up``), run experiments (``rh5 experiment``), write reports."""
+"""The ``rh5`` command line: start the suite (``rh5 up``), run experiments (``rh5 experiment``), write reports,
+describe and recover bags (``rh5 bag``, bag_cli.py)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from rh5_bringup.bag_cli import add_bag_parser, bag_command
 from rh5_bringup.launcher import Bringup, SuiteRun, load_bringup
 from rh5_bringup.session import SuiteSession, run_dir
 
@@ -197,6 +199,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="NODE.KEY=VALUE",
         help="node parameter, e.g. stabilizer.balance_correction=true",
     )
+    add_bag_parser(commands)
     rep = commands.add_parser("report", help="write the report of a recorded experiment bag")
     rep.add_argument("bag", type=Path, help="rosbag2 folder")
     rep.add_argument("--joints", default="", help="extra joints to plot, comma separated")
@@ -217,6 +220,8 @@ def main(argv: list[str] | None = None) -> int:
         return experiment(args)
     if args.command == "report":
         return report(args)
+    if args.command == "bag":
+        return bag_command(args)
     return 2
 
 

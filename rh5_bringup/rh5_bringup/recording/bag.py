@@ -2,7 +2,8 @@
 
 The MCAP file has the ``ros2`` profile, one ``ros2msg`` schema per message type (the full definition
 text rosbag2 writes, rh5_msgs_py.schemas), one ``cdr`` channel per topic carrying the
-``offered_qos_profiles`` and ``topic_type_hash`` metadata, uncompressed chunks with message indexes,
+``offered_qos_profiles`` and ``topic_type_hash`` metadata, zstd-compressed chunks (as rosbag2's
+``zstd_fast`` preset; ``compression=""`` writes them uncompressed) with message indexes,
 the summary rosbag2's writer produces and, on close, the ``rosbag2`` metadata record. Log time is
 the receive time and publish time the sender's time, both in integer nanoseconds (rosbag2 Jazzy's
 ``recv_timestamp``/``send_timestamp``).
@@ -23,6 +24,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Final, Self
 
+from rh5_bringup.recording.compression import DEFAULT_COMPRESSION, DEFAULT_LEVEL
 from rh5_bringup.recording.errors import BagWriterError
 from rh5_bringup.recording.mcap_writer import DEFAULT_CHUNK_SIZE, McapStreamWriter
 from rh5_bringup.recording.metadata import (
@@ -38,6 +40,7 @@ __all__ = [
     "DEFAULT_CHUNK_MAX_AGE_S",
     "LIBRARY",
     "BagWriter",
+    "bag_files",
     "mcap_file_of",
     "type_description_hash",
 ]
@@ -53,6 +56,18 @@ def mcap_file_of(bag: Path) -> Path:
     """The MCAP file of a bag folder, named like rosbag2's first split: ``<bag>/<bag>_0.mcap``."""
     bag = Path(bag)
     return bag / f"{bag.name}_0.mcap"
+
+
+def bag_files(bag: Path) -> list[Path]:
+    """The MCAP files of a bag folder in split order: ``<bag>_0.mcap``, ``<bag>_1.mcap``, ..."""
+    bag = Path(bag)
+    prefix = f"{bag.name}_"
+    numbered = []
+    for path in bag.glob(f"{prefix}*.mcap"):
+        index = path.stem.removeprefix(prefix)
+        if index.isdigit():
+            numbered.append((int(index), path))
+    return [path for _, path in sorted(numbered)]
 
 
 @cache
@@ -87,13 +102,22 @@ class BagWriter:
         chunk_size: int = DEFAULT_CHUNK_SIZE,
         chunk_max_age_s: float = DEFAULT_CHUNK_MAX_AGE_S,
         metadata_interval_s: float = DEFAULT_METADATA_INTERVAL_S,
+        compression: str = DEFAULT_COMPRESSION,
+        compression_level: int = DEFAULT_LEVEL,
         custom_data: Mapping[str, str] | None = None,
         clock: Callable[[], int] = time.monotonic_ns,
     ) -> None:
         self.path = Path(path)
         self.mcap_path = mcap_file_of(self.path)
         self.custom_data = dict(custom_data or {})
-        self._mcap = McapStreamWriter(self.mcap_path, profile="ros2", library=LIBRARY, chunk_size=chunk_size)
+        self._mcap = McapStreamWriter(
+            self.mcap_path,
+            profile="ros2",
+            library=LIBRARY,
+            chunk_size=chunk_size,
+            compression=compression,
+            compression_level=compression_level,
+        )
         self._max_age_ns = int(chunk_max_age_s * 1e9)
         self._metadata_interval_ns = int(metadata_interval_s * 1e9)
         self._clock = clock

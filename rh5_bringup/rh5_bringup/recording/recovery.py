@@ -46,7 +46,7 @@ from rh5_bringup.recording.metadata import (
     write_metadata_file,
 )
 
-__all__ = ["RecoveryResult", "is_complete", "recover_bag"]
+__all__ = ["FileScan", "RecoveryResult", "is_complete", "recover_bag", "scan_records"]
 
 _FOOTER_RECORD_SIZE = 1 + 8 + 20  # opcode, length, footer content
 _PAIR = struct.Struct("<QQ")
@@ -78,8 +78,8 @@ def is_complete(mcap_path: Path) -> bool:
 
 
 @dataclass
-class _Scan:
-    """The whole records of a cut file."""
+class FileScan:
+    """The whole records of a (possibly cut) file: what its summary would say."""
 
     end: int = 0
     schemas: list[bytes] = field(default_factory=list)
@@ -98,11 +98,12 @@ class _Scan:
         return self.end + len(self.tail)
 
 
-def _scan(data: memoryview) -> _Scan:
+def scan_records(data: memoryview) -> FileScan:
+    """Read every whole record of an MCAP file up to a cut, decompressing and indexing each whole chunk."""
     if bytes(data[: len(MAGIC)]) != MAGIC:
         msg = "not an MCAP file (no magic)"
         raise BagRecoveryError(msg)
-    scan = _Scan(end=len(MAGIC))
+    scan = FileScan(end=len(MAGIC))
     records = iter_records(data)
     first = next(records, None)
     if first is None or first.opcode != Opcode.HEADER:
@@ -126,18 +127,25 @@ def _scan(data: memoryview) -> _Scan:
         elif record.opcode == Opcode.CHUNK:
             try:
                 chunk = parse_chunk(content)
+            except LookupError as err:
+                raise BagRecoveryError(str(err)) from None
             except ValueError:
                 break  # torn chunk: the file ends before it
-            if chunk.compression:
-                msg = f"compressed chunks ({chunk.compression}) are not written by the recorder"
-                raise BagRecoveryError(msg)
-            entries: dict[int, list[tuple[int, int]]] = {}
+            entries = {}
             for channel_id, log_time, offset in iter_chunk_messages(chunk.records):
                 entries.setdefault(channel_id, []).append((log_time, offset))
             counts = {cid: len(e) for cid, e in entries.items()}
             scan.statistics.add_chunk(chunk.start_time, chunk.end_time, counts)
             index_owner = ChunkIndex(
-                chunk.start_time, chunk.end_time, record.offset, record.length, {}, 0, len(chunk.records)
+                chunk.start_time,
+                chunk.end_time,
+                record.offset,
+                record.length,
+                {},
+                0,
+                len(chunk.records),
+                chunk.compression,
+                chunk.stored_size,
             )
             scan.chunk_indexes.append(index_owner)
         elif record.opcode == Opcode.MESSAGE_INDEX:
@@ -160,7 +168,7 @@ def _scan(data: memoryview) -> _Scan:
     return scan
 
 
-def _rebuild_last_indexes(scan: _Scan, chunk: ChunkIndex, entries: dict[int, list[tuple[int, int]]]) -> None:
+def _rebuild_last_indexes(scan: FileScan, chunk: ChunkIndex, entries: dict[int, list[tuple[int, int]]]) -> None:
     """Drop the last chunk's partial message indexes and append whole ones (readers such as rosbags need them)."""
     scan.end = chunk.offset + chunk.length
     records, offsets, position = [], {}, scan.end
@@ -174,7 +182,7 @@ def _rebuild_last_indexes(scan: _Scan, chunk: ChunkIndex, entries: dict[int, lis
     scan.chunk_indexes[-1] = replace(chunk, message_index_offsets=offsets, message_index_length=len(scan.tail))
 
 
-def _topics(scan: _Scan) -> list[BagTopic]:
+def _topics(scan: FileScan) -> list[BagTopic]:
     topics = []
     for channel_id in sorted(scan.channel_info):
         schema_id, topic, metadata = scan.channel_info[channel_id]
@@ -216,7 +224,7 @@ def recover_bag(bag: Path | str) -> RecoveryResult:
         with mmap.mmap(stream.fileno(), 0, access=mmap.ACCESS_READ) as mapped:
             view = memoryview(mapped)
             try:
-                scan = _scan(view)
+                scan = scan_records(view)
             finally:
                 view.release()
         topics = _topics(scan)
