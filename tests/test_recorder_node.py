@@ -10,7 +10,6 @@ of what was sent; after SIGKILL the MCAP must be readable up to its last chunk, 
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import signal
@@ -31,6 +30,7 @@ from mcap.stream_reader import StreamReader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 
+from rh5_bringup.fastdds_shm import remove_stale
 from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_bringup.recorder_node import default_bag_folder, offered_qos, recording_qos
 from rh5_bringup.recording import mcap_file_of
@@ -260,39 +260,6 @@ def stream_read(path: Path) -> tuple[dict[int, Channel], list[Message]]:
     return channels, messages
 
 
-def in_use_shm_files() -> set[str]:
-    """/dev/shm files some live process maps or holds open."""
-    in_use: set[str] = set()
-    for proc in Path("/proc").iterdir():
-        if not proc.name.isdigit():
-            continue
-        try:
-            maps = (proc / "maps").read_text().splitlines()
-            in_use |= {line.rsplit("/", 1)[-1] for line in maps if "/dev/shm/" in line}
-            for fd in (proc / "fd").iterdir():
-                with contextlib.suppress(OSError):
-                    in_use.add(os.readlink(fd).rsplit("/", 1)[-1])
-        except OSError:
-            continue
-    return in_use
-
-
-def remove_stale_segments(new: set[str]) -> list[str]:
-    """Delete the Fast DDS segments a killed process left, as ``fastdds shm clean`` would: each segment
-    ``B`` (with ``B_el`` and ``sem.B_mutex``) that appeared during the test and no live process uses."""
-    bases = {name.removeprefix("sem.").removesuffix("_mutex").removesuffix("_el") for name in new}
-    in_use = in_use_shm_files()
-    removed = []
-    for base in sorted(bases):
-        if base in in_use or f"{base}_el" in in_use:
-            continue
-        for name in (base, f"{base}_el", f"sem.{base}_mutex"):
-            if name in new:
-                Path("/dev/shm", name).unlink(missing_ok=True)
-                removed.append(name)
-    return removed
-
-
 def publish_streams(seconds: float) -> None:
     """Child process of the SIGKILL test: wait for the recorder, publish the streams, print what was sent (json)."""
     import rclpy
@@ -335,7 +302,7 @@ def test_a_killed_recorder_leaves_a_bag_readable_up_to_its_last_chunk(tmp_path: 
                 publisher.kill()
                 publisher.wait()
             run.stop()
-    removed = remove_stale_segments(fastdds_shm_segments() - shm_before)
+    removed = remove_stale(fastdds_shm_segments() - shm_before)  # as rh5 up does after a killed node
     assert run.processes[0].process.returncode == -signal.SIGKILL
     assert any(name.endswith("_el") for name in removed), "the killed recorder's shared memory was cleaned"
     sent = json.loads(output.strip().splitlines()[-1])

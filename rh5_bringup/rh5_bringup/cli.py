@@ -182,6 +182,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--start", action="store_true", help="once up: plan the planner's motion, enable the driver, start playback"
     )
     up_parser.add_argument("--separate", action="store_true", help=SEPARATE_HELP)
+    up_parser.add_argument("--no-record", action="store_true", help="run without the recorder (no bag)")
     exp = commands.add_parser("experiment", help="plan, run on the simulated robot, record and report a motion")
     exp.add_argument("motion", help="motion name (rh5-plan --list)")
     exp.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="motion parameter override")
@@ -215,6 +216,8 @@ def main(argv: list[str] | None = None) -> int:
             print("rh5 up: --duration must be positive", file=sys.stderr)
             return 2
         bringup = replace(load_bringup(args.bringup).resolved(sim=args.sim), composed=not args.separate)
+        if args.no_record:
+            bringup = bringup.without("recorder")
         return up(bringup, args.duration, args.log_dir, start=args.start)
     if args.command == "experiment":
         return experiment(args)
