@@ -33,7 +33,7 @@ from rosbags.highlevel import AnyReader
 from rh5_bringup.fastdds_shm import remove_stale
 from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_bringup.recorder_node import default_bag_folder, offered_qos, recording_qos
-from rh5_bringup.recording import mcap_file_of
+from rh5_bringup.recording import bag_files, mcap_file_of
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec
 from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS
@@ -48,6 +48,10 @@ MIN_DELIVERED = 0.99
 """Share of the best-effort messages sent that must reach the bag. Best effort may lose a sample when the
 recorder's DDS receive thread is descheduled for longer than the transport buffers last on this shared
 2-core machine; none was lost in bench/recorder.py. What the recorder itself received is checked exactly."""
+
+
+SPLIT_S = 0.8
+"""The clean-stop recording is split by duration: every check of it reads all its files."""
 
 
 def log_dir(env: dict[str, str], name: str) -> Path:
@@ -129,16 +133,20 @@ def bag_messages(bag: Path) -> dict[str, list[tuple[int, Any]]]:
 
 
 def mcap_records(bag: Path) -> tuple[dict[str, list[Message]], int]:
-    """Messages per topic decoded by mcap_ros2 (CRC-checked), and the bag's statistics message count."""
+    """Messages per topic decoded by mcap_ros2 (CRC-checked) from every split file of the bag, and the sum of
+    the files' statistics message counts."""
     out: dict[str, list[Message]] = {}
-    with mcap_file_of(bag).open("rb") as stream:
-        reader = make_reader(stream, validate_crcs=True, decoder_factories=[DecoderFactory()])
-        for _, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
-            assert decoded is not None
-            out.setdefault(channel.topic, []).append(message)
-        summary = reader.get_summary()
-    assert summary is not None
-    return out, summary.statistics.message_count
+    total = 0
+    for path in bag_files(bag):
+        with path.open("rb") as stream:
+            reader = make_reader(stream, validate_crcs=True, decoder_factories=[DecoderFactory()])
+            for _, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
+                assert decoded is not None
+                out.setdefault(channel.topic, []).append(message)
+            summary = reader.get_summary()
+        assert summary is not None
+        total += summary.statistics.message_count
+    return out, total
 
 
 # --- clean stop ---------------------------------------------------------------------------------------------------
@@ -157,7 +165,7 @@ def recorded(ros_graph: Any, ros_test_environment: dict[str, str], tmp_path_fact
     before = streams.subscriber_counts()
     bag = tmp_path_factory.mktemp("recorder") / "sigint_bag"
     topics = [t.name for t in STREAMS] + [interfaces.DIAGNOSTICS.name, interfaces.ROBOT_DESCRIPTION.name]
-    run = recorder_run(ros_test_environment, bag, "recorder_sigint", topics)
+    run = recorder_run(ros_test_environment, bag, "recorder_sigint", topics, max_bag_duration_s=SPLIT_S)
     with run:
         wait_until_matched(node, streams, before)
         streams.run_for(PUBLISH_S)
@@ -186,6 +194,21 @@ def test_recorder_stops_cleanly_with_a_summary_naming_the_bag(recorded: Any) -> 
     assert summary["error"] is None
     assert summary["take_error"] is None
     assert f"to {recorded['bag']}" in recorded["stderr"], "the bag path is logged at start"
+
+
+def test_the_recording_is_split_by_duration_into_files_that_stand_alone(recorded: Any) -> None:
+    files = bag_files(recorded["bag"])
+    assert len(files) >= int(PUBLISH_S / SPLIT_S), files
+    for path in files:
+        with path.open("rb") as stream:
+            summary = make_reader(stream, validate_crcs=True).get_summary()
+        assert summary is not None
+        stats = summary.statistics
+        assert stats.message_count > 0
+        # split when a message is SPLIT_S after the file's first; topics reach the writer a few ms out of order
+        assert stats.message_end_time - stats.message_start_time < (SPLIT_S + 0.1) * 1e9
+    info = yaml.safe_load((recorded["bag"] / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["relative_file_paths"] == [f.name for f in files]
 
 
 def test_nothing_the_recorder_received_is_missing_from_the_bag(recorded: Any) -> None:

@@ -31,6 +31,7 @@ from rh5_bringup.recording import (
     BagWriterError,
     OfferedQos,
     QueuedBagWriter,
+    bag_files,
     format_bag_info,
     is_complete,
     mcap_file_of,
@@ -470,6 +471,89 @@ def test_bag_info_of_a_killed_bag_counts_its_whole_chunks_and_says_to_recover(cr
 def test_bag_info_refuses_a_folder_without_mcap_files(tmp_path: Path) -> None:
     with pytest.raises(BagRecoveryError, match="not a bag folder"):
         read_bag_info(tmp_path)
+
+
+# --- splitting ----------------------------------------------------------------------------------------------------
+
+
+def read_all(path: Path) -> dict[str, list[tuple[int, bytes]]]:
+    """Every message of a bag folder, per topic, as rosbags reads it (all split files, via metadata.yaml)."""
+    got: dict[str, list[tuple[int, bytes]]] = {}
+    with AnyReader([path]) as reader:
+        for connection, timestamp, raw in reader.messages():
+            got.setdefault(connection.topic, []).append((timestamp, bytes(raw)))
+            reader.deserialize(raw, connection.msgtype)
+    return got
+
+
+def mcap_summary(path: Path) -> Any:
+    """The summary mcap's seeking reader finds in one file (CRC-checked)."""
+    with path.open("rb") as stream:
+        summary = make_reader(stream, validate_crcs=True).get_summary()
+    assert summary is not None, path
+    return summary
+
+
+def test_a_bag_split_by_size_is_read_whole_and_every_file_stands_alone(tmp_path: Path, compression: str) -> None:
+    path = tmp_path / "sized"
+    limit = 64 * 1024
+    with BagWriter(path, chunk_size=8 * 1024, compression=compression, max_bag_size=limit) as bag:
+        written = write_session(bag, n_states=2000)
+        files = bag.files
+    assert [f.name for f in files] == [f"sized_{k}.mcap" for k in range(len(files))]
+    assert len(files) >= 3
+    assert bag_files(path) == files
+    assert all(f.stat().st_size >= limit for f in files[:-1]), "a file is split only once it reached the limit"
+    assert read_all(path) == written
+    info = yaml.safe_load((path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["relative_file_paths"] == [f.name for f in files]
+    per_file = [mcap_summary(f).statistics.message_count for f in files]
+    assert [f["message_count"] for f in info["files"]] == per_file
+    assert sum(per_file) == info["message_count"] == sum(len(v) for v in written.values())
+    for f in files:
+        summary = mcap_summary(f)
+        assert {c.topic for c in summary.channels.values()} == set(written)
+    assert read_bag_info(path).message_count == sum(per_file)
+
+
+def test_a_bag_split_by_duration_starts_a_file_per_period_of_log_time(tmp_path: Path) -> None:
+    path = tmp_path / "timed"
+    with BagWriter(path, chunk_size=16 * 1024, max_bag_duration_s=1.0) as bag:
+        topic = bag.add_topic("/joint_states", JOINT_STATE, [STREAM])
+        for i in range(2500):  # 2.5 s at 1 kHz
+            bag.write(topic, T0 + i * 1_000_000, joint_state(i, n=4))
+        files = bag.files
+    assert len(files) == 3
+    spans = []
+    for f in files:
+        stats = mcap_summary(f).statistics
+        spans.append((stats.message_start_time, stats.message_end_time, stats.message_count))
+    assert [n for *_, n in spans] == [1000, 1000, 500]
+    assert [start for start, *_ in spans] == [T0, T0 + 1_000_000_000, T0 + 2_000_000_000]
+    assert len(read_all(path)["/joint_states"]) == 2500
+
+
+def test_a_killed_split_bag_is_recovered_file_by_file(tmp_path: Path) -> None:
+    path = tmp_path / "killed_split"
+    bag = BagWriter(path, chunk_size=8 * 1024, max_bag_size=48 * 1024, compression="")
+    bag.open()
+    written = write_session(bag, n_states=1500)
+    files = bag.files
+    kept = bag.message_count - bag.pending_messages
+    bag.abort()
+    assert len(files) >= 2
+    finished = {f: f.read_bytes() for f in files[:-1]}
+    assert all(is_complete(f) for f in finished)
+    assert not is_complete(files[-1])
+    result = recover_bag(path)
+    assert result.recovered
+    assert result.message_count == kept
+    assert {f: f.read_bytes() for f in files[:-1]} == finished, "complete files are left alone"
+    got = read_all(path)
+    assert sum(len(v) for v in got.values()) == kept
+    for topic, messages in got.items():
+        assert messages == written[topic][: len(messages)]
+    assert sum(mcap_summary(f).statistics.message_count for f in files) == kept
 
 
 # --- the queued writer --------------------------------------------------------------------------------------------

@@ -90,6 +90,11 @@ class McapStreamWriter:
     # --- lifecycle -------------------------------------------------------------------------------------------
 
     @property
+    def position(self) -> int:
+        """Bytes written to the file so far."""
+        return self._position
+
+    @property
     def compression(self) -> str:
         """The chunks' compression: ``zstd`` or ``""``."""
         return self._compressor.compression
