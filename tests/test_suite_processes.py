@@ -291,6 +291,9 @@ def test_the_suite_runs_on_when_the_recorder_is_killed(tmp_path: Path) -> None:
         on_disk = _wait_for_recorded(bag, "/joint_states", up)
         os.kill(recorder, signal.SIGKILL)
         err.wait_for("recorder stopped on its own (exit -9); the other nodes keep running", up, timeout_s=30.0)
+        owned_bases = {name.removesuffix("_el") for name in owned if name.endswith("_el")}
+        in_use = in_use_shm_files()  # a 70xx port may already serve a new participant of another run
+        kept = {base for base in owned_bases if (SHM_DIR / base).exists() and f"{base}_el" not in in_use}
         time.sleep(3.0)  # the suite runs on
         assert up.poll() is None, err.text
         alive = _children(up.pid)
@@ -304,6 +307,8 @@ def test_the_suite_runs_on_when_the_recorder_is_killed(tmp_path: Path) -> None:
         out.join()
         err.join()
     assert owned, "the recorder used Fast DDS shared memory"
+    assert len(owned_bases) >= 2, sorted(owned)  # its segment and its ports
+    assert not kept, f"what the dead recorder owned was removed at once: {sorted(kept)}"
     left = {name for name in owned if (SHM_DIR / name).exists()}
     unused = {name for name in left if not family(name) & in_use_shm_files()}  # another run's files may stay
     assert not unused, f"files the dead recorder used that no live process uses were left: {sorted(unused)}"

@@ -4,9 +4,10 @@ Fast DDS's shared-memory transport keeps, per participant, a segment ``/dev/shm/
 per listening port ``fastrtps_port<n>``, each with a lock file ``<name>_el`` and a semaphore
 ``sem.<name>_mutex``. A process that exits cleanly removes its own; one killed with SIGKILL leaves
 them (32 files after a killed suite). The launcher notes which of these files each node process
-uses while it runs (:func:`shm_files_of`), and after it died removes those that no live process
-maps or holds open any more, as ``fastdds shm clean`` would: a port that other participants still
-use is kept.
+uses while it runs (:func:`shm_files_of`), and after it died removes what it owned (as ``fastdds
+shm clean`` would) and, once no live process uses them, the other participants' ports it kept
+referenced (:func:`remove_stale`). The ``fastrtps_port70xx`` ports are taken machine-wide, one per
+participant, first free first: a dead participant's one is soon reused by another run.
 """
 
 from __future__ import annotations
@@ -61,23 +62,31 @@ def family(name: str) -> set[str]:
     return {base, f"{base}_el", f"sem.{base}_mutex"}
 
 
-def remove_stale(owned: Iterable[str], *, ignore_self: bool = False) -> list[str]:
-    """Remove the files of ``owned`` (with their lock files and semaphores) that no live process uses.
+def remove_stale(used: Iterable[str], *, ignore_self: bool = False) -> list[str]:
+    """Remove the stale files among ``used`` (the files dead processes used), each with its lock file and
+    semaphore; returns the names removed.
 
-    ``owned`` are the files a dead process used; returns the names removed. ``ignore_self``: this
-    process's own mappings do not count (its ROS context is shut down, they are leftovers).
+    A segment or port whose lock file ``<name>_el`` is among ``used`` was owned by a dead process: it is
+    stale once no live process holds that lock, even if peers still map it (unlinking leaves their mappings
+    intact; left in place, a participant that later takes the port over inherits the dead process's
+    references and can never remove it, as ``fastdds shm clean`` also assumes). Any other file, a port of
+    some other participant, is stale once no live process maps or holds it. ``ignore_self``: this process's
+    own mappings do not count (its ROS context is shut down, they are leftovers).
     """
-    candidates = {member for name in owned for member in family(name)}
+    used = set(used)
+    owned = {name.removesuffix("_el") for name in used if name.endswith("_el")}
+    candidates = {member for name in used for member in family(name)}
     if not candidates:
         return []
     in_use = in_use_shm_files(exclude=[os.getpid()] if ignore_self else [])
     removed = []
     for name in sorted(candidates):
-        if any(member in in_use for member in family(name)):
+        base = name.removeprefix("sem.").removesuffix("_mutex").removesuffix("_el")
+        busy = f"{base}_el" in in_use if base in owned else bool(family(name) & in_use)
+        if busy:
             continue
-        path = SHM_DIR / name
         try:
-            path.unlink()
+            (SHM_DIR / name).unlink()
         except FileNotFoundError:
             continue
         removed.append(name)

@@ -108,7 +108,8 @@ class Bringup:
         return bringup
 
     def without(self, node_name: str) -> Bringup:
-        """A copy without ``node_name`` (``rh5 up --no-record``: without the recorder); a hosted node stays."""
+        """A copy without ``node_name`` (``rh5 up --no-record``: without the recorder); a hosted node cannot be
+        left out (its host runs it)."""
         if node_name not in {n.name for n in self.nodes}:
             msg = f"no node {node_name!r} in the bringup (have {[n.name for n in self.nodes]})"
             raise KeyError(msg)
