@@ -4,15 +4,17 @@ Fast DDS's shared-memory transport keeps, per participant, a segment ``/dev/shm/
 per listening port ``fastrtps_port<n>``, each with a lock file ``<name>_el`` and a semaphore
 ``sem.<name>_mutex``. A process that exits cleanly removes its own; one killed with SIGKILL leaves
 them (32 files after a killed suite). The launcher notes which of these files each node process
-uses while it runs (:func:`shm_files_of`), and after it died removes what it owned (as ``fastdds
-shm clean`` would) and, once no live process uses them, the other participants' ports it kept
-referenced (:func:`remove_stale`). The ``fastrtps_port70xx`` ports are taken machine-wide, one per
-participant, first free first: a dead participant's one is soon reused by another run.
+uses while it runs (:func:`shm_files_of`), and after one died removes every file of theirs that no
+live participant owns any more (:func:`remove_stale`, as ``fastdds shm clean``): what the killed
+process owned at once, and the other participants' ports it kept referenced as soon as their owners
+exit. That is urgent: the ``fastrtps_port70xx`` ports are taken machine-wide, first free first, so
+another run's next participant would take such a port over and leak it in turn.
 """
 
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import os
 from collections.abc import Iterable
 from pathlib import Path
@@ -62,32 +64,43 @@ def family(name: str) -> set[str]:
     return {base, f"{base}_el", f"sem.{base}_mutex"}
 
 
-def remove_stale(used: Iterable[str], *, ignore_self: bool = False) -> list[str]:
-    """Remove the stale files among ``used`` (the files dead processes used), each with its lock file and
-    semaphore; returns the names removed.
+def _remove_family(base: str) -> list[str]:
+    """Remove one segment or port with its lock file and semaphore if no live participant owns it.
 
-    A segment or port whose lock file ``<name>_el`` is among ``used`` was owned by a dead process: it is
-    stale once no live process holds that lock, even if peers still map it (unlinking leaves their mappings
-    intact; left in place, a participant that later takes the port over inherits the dead process's
-    references and can never remove it, as ``fastdds shm clean`` also assumes). Any other file, a port of
-    some other participant, is stale once no live process maps or holds it. ``ignore_self``: this process's
-    own mappings do not count (its ROS context is shut down, they are leftovers).
+    Fast DDS's owner holds an exclusive ``flock`` on ``<base>_el`` while it lives. Taking that lock
+    here (creating the file if it is gone) proves there is none, and holding it while unlinking keeps
+    a new participant from taking the port over meanwhile: it would inherit the dead process's
+    references and could never remove the files either.
     """
-    used = set(used)
-    owned = {name.removesuffix("_el") for name in used if name.endswith("_el")}
-    candidates = {member for name in used for member in family(name)}
-    if not candidates:
+    lock_path = SHM_DIR / f"{base}_el"
+    try:
+        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError:
         return []
-    in_use = in_use_shm_files(exclude=[os.getpid()] if ignore_self else [])
-    removed = []
-    for name in sorted(candidates):
-        base = name.removeprefix("sem.").removesuffix("_mutex").removesuffix("_el")
-        busy = f"{base}_el" in in_use if base in owned else bool(family(name) & in_use)
-        if busy:
-            continue
+    try:
         try:
-            (SHM_DIR / name).unlink()
-        except FileNotFoundError:
-            continue
-        removed.append(name)
-    return removed
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            return []  # a live participant owns it
+        removed = []
+        for name in (base, f"sem.{base}_mutex", f"{base}_el"):
+            try:
+                (SHM_DIR / name).unlink()
+            except FileNotFoundError:
+                continue
+            removed.append(name)
+        return removed
+    finally:
+        os.close(fd)
+
+
+def remove_stale(used: Iterable[str]) -> list[str]:
+    """Remove the segments and ports among ``used`` (the files dead processes used) that no live participant
+    owns, each with its lock file and semaphore, as ``fastdds shm clean`` does; returns the names removed.
+
+    Files that peers still map are removed too when their owner is gone: unlinking leaves the peers'
+    mappings intact, and nothing listens on such a port any more.
+    """
+    bases = {name.removeprefix("sem.").removesuffix("_mutex").removesuffix("_el") for name in used}
+    present = {base for base in bases if any((SHM_DIR / name).exists() for name in family(base))}
+    return [name for base in sorted(present) for name in _remove_family(base)]

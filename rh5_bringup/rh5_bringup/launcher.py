@@ -314,14 +314,13 @@ class SuiteRun:
         self.removed_shm += removed
         return removed
 
-    def remove_stale_shared_memory(self, *, ignore_self: bool = False) -> list[str]:
-        """Once the nodes have stopped: if one was killed, remove the shared memory of every node that no live
-        process uses any more (a killed process never drops its references to the other participants' ports,
-        so they stay even after their owners exit cleanly). ``ignore_self``: this process's ROS context is
-        shut down, its own mappings do not count. Returns the names removed."""
+    def remove_stale_shared_memory(self) -> list[str]:
+        """If a node was killed: remove the shared memory of every node that no live participant owns any more
+        (a killed process never drops its references to the other participants' ports, so they stay even
+        after their owners exit cleanly). Returns the names removed."""
         if not any(p.process.returncode is not None and p.process.returncode < 0 for p in self.processes):
             return []
-        removed = remove_stale(set().union(*(p.shm_files for p in self.processes)), ignore_self=ignore_self)
+        removed = remove_stale(set().union(*(p.shm_files for p in self.processes)))
         self.removed_shm += removed
         return removed
 
@@ -353,17 +352,29 @@ class SuiteRun:
         deadline = time.monotonic() + grace_s
         for proc in self.processes:
             for sig in (signal.SIGTERM, signal.SIGKILL):
-                try:
-                    proc.process.wait(timeout=max(0.1, deadline - time.monotonic()))
+                if self._wait(proc, max(0.1, deadline - time.monotonic())):
                     break
-                except subprocess.TimeoutExpired:
-                    os.killpg(proc.process.pid, sig)
-                    deadline = time.monotonic() + 2.0
+                os.killpg(proc.process.pid, sig)
+                deadline = time.monotonic() + 2.0
             proc.process.wait()
         self.remove_stale_shared_memory()
         if self._lease is not None:
             self._lease.release()
         return {name: p.process.returncode for p in self.processes for name in p.names}
+
+    def _wait(self, proc: NodeProcess, timeout_s: float) -> bool:
+        """Wait up to ``timeout_s`` for ``proc`` to exit; True if it did. After a node was killed, whatever the
+        others leave is removed as soon as each exits (before another run's participant takes a port over)."""
+        deadline = time.monotonic() + timeout_s
+        exited = len(self.exited())
+        while proc.process.poll() is None:
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.02)
+            if len(self.exited()) != exited:
+                exited = len(self.exited())
+                self.remove_stale_shared_memory()
+        return True
 
     def __enter__(self) -> SuiteRun:
         self.start()

@@ -131,7 +131,7 @@ class SuiteSession:
                 self.node.destroy_node()
                 rclpy.try_shutdown()
                 context.destroy()  # the observer's participant ends now, not whenever the context is collected
-                self.run.remove_stale_shared_memory(ignore_self=True)  # again: the observer used their ports too
+                self.run.remove_stale_shared_memory()  # again: the observer's own port, once it has ended
                 if self.run.removed_shm:
                     self.report(f"removed {len(self.run.removed_shm)} Fast DDS shared-memory files killed nodes left")
                 for sig, handler in self._previous.items():

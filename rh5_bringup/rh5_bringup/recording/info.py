@@ -180,7 +180,8 @@ def format_bag_info(info: BagInfo) -> str:
         state = "complete" if file.complete else "INCOMPLETE (no summary: run `rh5 bag recover`)"
         ratio = file.records_bytes / file.stored_bytes if file.stored_bytes else 1.0
         lines.append(
-            f"File:         {file.path.name}  {file.size / 1e6:.1f} MB, {state}; {len(file.chunks)} chunks, "
+            f"File:         {file.path.name}  {file.size / 1e6:.1f} MB, {state}; "
+            f"{file.statistics.message_count} messages in {len(file.chunks)} chunks, "
             f"compression {'+'.join(file.compressions) or 'none'} ({ratio:.1f}x)"
         )
     lines.append(f"Size:         {sum(f.size for f in info.files) / 1e6:.1f} MB")
