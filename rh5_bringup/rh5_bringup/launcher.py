@@ -314,11 +314,15 @@ class SuiteRun:
         self.removed_shm += removed
         return removed
 
+    def killed(self) -> bool:
+        """Whether a node process ended by a signal (it left its Fast DDS shared memory)."""
+        return any(p.process.returncode is not None and p.process.returncode < 0 for p in self.processes)
+
     def remove_stale_shared_memory(self) -> list[str]:
         """If a node was killed: remove the shared memory of every node that no live participant owns any more
         (a killed process never drops its references to the other participants' ports, so they stay even
         after their owners exit cleanly). Returns the names removed."""
-        if not any(p.process.returncode is not None and p.process.returncode < 0 for p in self.processes):
+        if not self.killed():
             return []
         removed = remove_stale(set().union(*(p.shm_files for p in self.processes)))
         self.removed_shm += removed
