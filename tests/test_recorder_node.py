@@ -5,12 +5,11 @@ The test process publishes three 1 kHz JointState streams (best effort, as the s
 starts, numbering every stream message in ``position[0]``. After SIGINT the bag must hold exactly
 what the recorder received (its own count: nothing lost between DDS and the file), and nearly all
 of what was sent; after SIGKILL the MCAP must be readable up to its last chunk, and complete after
-recover_bag.
+``rh5 bag recover``, read in full by rosbags and by mcap's seeking reader.
 """
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import signal
@@ -31,9 +30,10 @@ from mcap.stream_reader import StreamReader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 
+from rh5_bringup.fastdds_shm import remove_stale
 from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_bringup.recorder_node import default_bag_folder, offered_qos, recording_qos
-from rh5_bringup.recording import mcap_file_of, recover_bag
+from rh5_bringup.recording import bag_files, mcap_file_of
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec
 from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS
@@ -48,6 +48,10 @@ MIN_DELIVERED = 0.99
 """Share of the best-effort messages sent that must reach the bag. Best effort may lose a sample when the
 recorder's DDS receive thread is descheduled for longer than the transport buffers last on this shared
 2-core machine; none was lost in bench/recorder.py. What the recorder itself received is checked exactly."""
+
+
+SPLIT_S = 0.8
+"""The clean-stop recording is split by duration: every check of it reads all its files."""
 
 
 def log_dir(env: dict[str, str], name: str) -> Path:
@@ -129,16 +133,20 @@ def bag_messages(bag: Path) -> dict[str, list[tuple[int, Any]]]:
 
 
 def mcap_records(bag: Path) -> tuple[dict[str, list[Message]], int]:
-    """Messages per topic decoded by mcap_ros2 (CRC-checked), and the bag's statistics message count."""
+    """Messages per topic decoded by mcap_ros2 (CRC-checked) from every split file of the bag, and the sum of
+    the files' statistics message counts."""
     out: dict[str, list[Message]] = {}
-    with mcap_file_of(bag).open("rb") as stream:
-        reader = make_reader(stream, validate_crcs=True, decoder_factories=[DecoderFactory()])
-        for _, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
-            assert decoded is not None
-            out.setdefault(channel.topic, []).append(message)
-        summary = reader.get_summary()
-    assert summary is not None
-    return out, summary.statistics.message_count
+    total = 0
+    for path in bag_files(bag):
+        with path.open("rb") as stream:
+            reader = make_reader(stream, validate_crcs=True, decoder_factories=[DecoderFactory()])
+            for _, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
+                assert decoded is not None
+                out.setdefault(channel.topic, []).append(message)
+            summary = reader.get_summary()
+        assert summary is not None
+        total += summary.statistics.message_count
+    return out, total
 
 
 # --- clean stop ---------------------------------------------------------------------------------------------------
@@ -157,7 +165,7 @@ def recorded(ros_graph: Any, ros_test_environment: dict[str, str], tmp_path_fact
     before = streams.subscriber_counts()
     bag = tmp_path_factory.mktemp("recorder") / "sigint_bag"
     topics = [t.name for t in STREAMS] + [interfaces.DIAGNOSTICS.name, interfaces.ROBOT_DESCRIPTION.name]
-    run = recorder_run(ros_test_environment, bag, "recorder_sigint", topics)
+    run = recorder_run(ros_test_environment, bag, "recorder_sigint", topics, max_bag_duration_s=SPLIT_S)
     with run:
         wait_until_matched(node, streams, before)
         streams.run_for(PUBLISH_S)
@@ -186,6 +194,21 @@ def test_recorder_stops_cleanly_with_a_summary_naming_the_bag(recorded: Any) -> 
     assert summary["error"] is None
     assert summary["take_error"] is None
     assert f"to {recorded['bag']}" in recorded["stderr"], "the bag path is logged at start"
+
+
+def test_the_recording_is_split_by_duration_into_files_that_stand_alone(recorded: Any) -> None:
+    files = bag_files(recorded["bag"])
+    assert len(files) >= int(PUBLISH_S / SPLIT_S), files
+    for path in files:
+        with path.open("rb") as stream:
+            summary = make_reader(stream, validate_crcs=True).get_summary()
+        assert summary is not None
+        stats = summary.statistics
+        assert stats.message_count > 0
+        # split when a message is SPLIT_S after the file's first; topics reach the writer a few ms out of order
+        assert stats.message_end_time - stats.message_start_time < (SPLIT_S + 0.1) * 1e9
+    info = yaml.safe_load((recorded["bag"] / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["relative_file_paths"] == [f.name for f in files]
 
 
 def test_nothing_the_recorder_received_is_missing_from_the_bag(recorded: Any) -> None:
@@ -260,39 +283,6 @@ def stream_read(path: Path) -> tuple[dict[int, Channel], list[Message]]:
     return channels, messages
 
 
-def in_use_shm_files() -> set[str]:
-    """/dev/shm files some live process maps or holds open."""
-    in_use: set[str] = set()
-    for proc in Path("/proc").iterdir():
-        if not proc.name.isdigit():
-            continue
-        try:
-            maps = (proc / "maps").read_text().splitlines()
-            in_use |= {line.rsplit("/", 1)[-1] for line in maps if "/dev/shm/" in line}
-            for fd in (proc / "fd").iterdir():
-                with contextlib.suppress(OSError):
-                    in_use.add(os.readlink(fd).rsplit("/", 1)[-1])
-        except OSError:
-            continue
-    return in_use
-
-
-def remove_stale_segments(new: set[str]) -> list[str]:
-    """Delete the Fast DDS segments a killed process left, as ``fastdds shm clean`` would: each segment
-    ``B`` (with ``B_el`` and ``sem.B_mutex``) that appeared during the test and no live process uses."""
-    bases = {name.removeprefix("sem.").removesuffix("_mutex").removesuffix("_el") for name in new}
-    in_use = in_use_shm_files()
-    removed = []
-    for base in sorted(bases):
-        if base in in_use or f"{base}_el" in in_use:
-            continue
-        for name in (base, f"{base}_el", f"sem.{base}_mutex"):
-            if name in new:
-                Path("/dev/shm", name).unlink(missing_ok=True)
-                removed.append(name)
-    return removed
-
-
 def publish_streams(seconds: float) -> None:
     """Child process of the SIGKILL test: wait for the recorder, publish the streams, print what was sent (json)."""
     import rclpy
@@ -335,7 +325,7 @@ def test_a_killed_recorder_leaves_a_bag_readable_up_to_its_last_chunk(tmp_path: 
                 publisher.kill()
                 publisher.wait()
             run.stop()
-    removed = remove_stale_segments(fastdds_shm_segments() - shm_before)
+    removed = remove_stale(fastdds_shm_segments() - shm_before)  # as rh5 up does after a killed node
     assert run.processes[0].process.returncode == -signal.SIGKILL
     assert any(name.endswith("_el") for name in removed), "the killed recorder's shared memory was cleaned"
     sent = json.loads(output.strip().splitlines()[-1])
@@ -349,14 +339,44 @@ def test_a_killed_recorder_leaves_a_bag_readable_up_to_its_last_chunk(tmp_path: 
     assert all(n >= MIN_DELIVERED * sent_before for n in counts.values()), (counts, sent_before, sent["sent"])
     info = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     assert 0 < info["message_count"] <= len(readable), "metadata.yaml describes what the file holds"
-    result = recover_bag(bag)
-    assert result.recovered
-    assert result.message_count == len(readable)
+    described = rh5("bag", "info", str(bag))
+    assert described.returncode == 0, described.stderr
+    assert "INCOMPLETE" in described.stdout
+    assert f"Messages:     {len(readable)}" in described.stdout
+    recovered = rh5("bag", "recover", str(bag))
+    assert recovered.returncode == 0, recovered.stderr
+    assert f"kept {len(readable)} messages" in recovered.stdout
+    # read completely, by both independent readers: every message of every whole chunk, in publisher order
     messages = bag_messages(bag)
     assert {t.lstrip("/"): len(m) for t, m in messages.items()} == counts
     for name in names:
         numbers = [int(msg.position[0]) for _, msg in messages[f"/{name}"]]
         assert numbers == sorted(set(numbers))
+    decoded, total = mcap_records(bag)
+    assert {t.lstrip("/"): len(m) for t, m in decoded.items()} == counts
+    assert total == len(readable)
+    assert [(m.channel_id, m.sequence, m.log_time) for m in sorted(readable, key=key)] == [
+        (m.channel_id, m.sequence, m.log_time) for m in sorted((m for ms in decoded.values() for m in ms), key=key)
+    ]
+    with mcap_file_of(bag).open("rb") as stream:
+        summary = make_reader(stream).get_summary()
+    assert summary is not None
+    assert {index.compression for index in summary.chunk_indexes} == {"zstd"}, "chunks are compressed by default"
+    again = rh5("bag", "recover", str(bag))
+    assert again.returncode == 0
+    assert "complete already" in again.stdout
+
+
+def key(message: Message) -> tuple[int, int, int]:
+    """Order messages of several readers alike."""
+    return message.channel_id, message.log_time, message.sequence
+
+
+def rh5(*args: str) -> subprocess.CompletedProcess[str]:
+    """Run the ``rh5`` command line of this environment."""
+    return subprocess.run(
+        [str(Path(sys.prefix) / "bin" / "rh5"), *args], capture_output=True, text=True, timeout=120, check=False
+    )
 
 
 # --- no processes -------------------------------------------------------------------------------------------------

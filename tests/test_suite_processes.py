@@ -2,14 +2,25 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
 import time
+from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import pytest
+import yaml
+from rosbags.highlevel import AnyReader
 
 from rh5_bringup.cli import call_trigger
+from rh5_bringup.fastdds_shm import SHM_DIR, family, in_use_shm_files, shm_files_of
 from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, load_bringup, wait_for_nodes
+from rh5_bringup.recording import read_bag_info
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.names import JOINT_NAMES
 from rh5_msgs_py.node_runtime import parse_summaries
@@ -173,3 +184,145 @@ def test_runtime_parameter_change_is_validated(ros_graph: Any, ros_test_environm
     assert not rejected.successful
     assert "command_timeout_s" in rejected.reason
     assert accepted.successful
+
+
+# --- a dead recorder does not stop the robot ------------------------------------------------------------------------
+
+
+class _Lines:
+    """The lines a child process writes to one pipe, collected by a thread."""
+
+    def __init__(self, stream: IO[str]) -> None:
+        self.lines: list[str] = []
+        self._thread = threading.Thread(target=self._read, args=(stream,), daemon=True)
+        self._thread.start()
+
+    def _read(self, stream: IO[str]) -> None:
+        for line in stream:
+            self.lines.append(line.rstrip("\n"))
+
+    @property
+    def text(self) -> str:
+        return "\n".join(self.lines)
+
+    def wait_for(self, needle: str, alive: subprocess.Popen[str], timeout_s: float) -> None:
+        deadline = time.monotonic() + timeout_s
+        while needle not in self.text:
+            assert alive.poll() is None, f"rh5 up ended (exit {alive.returncode}) before {needle!r}:\n{self.text}"
+            assert time.monotonic() < deadline, f"no {needle!r} within {timeout_s} s:\n{self.text}"
+            time.sleep(0.1)
+
+    def join(self) -> None:
+        self._thread.join(timeout=10)
+
+
+def _children(pid: int) -> dict[int, str]:
+    """Live child processes of ``pid``: their command lines."""
+    out = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            command = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode()
+        except OSError:
+            continue
+        if int(fields[1]) == pid and fields[0] != "Z":
+            out[int(entry.name)] = command
+    return out
+
+
+def _wait_for_recorded(bag: Path, topic: str, alive: subprocess.Popen[str], timeout_s: float = 30.0) -> int:
+    """Until whole chunks of the recording in progress hold messages of ``topic``; returns how many."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        assert alive.poll() is None, "rh5 up ended"
+        if bag.is_dir() and any(bag.glob("*.mcap")):
+            count = {t.name: t.count for t in read_bag_info(bag).topics}.get(topic, 0)
+            if count:
+                return count
+        time.sleep(0.2)
+    pytest.fail(f"no {topic} in the bag's whole chunks within {timeout_s} s")
+
+
+def _bringup_file(folder: Path, bag: Path) -> Path:
+    """The packaged bringup with the recorder writing ``bag`` and the simulated boards on a free UDP port (the
+    default port may be taken by another run on this machine)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    document = yaml.safe_load(resources.files("rh5_bringup").joinpath("bringup.yaml").read_text(encoding="utf-8"))
+    extra = {"recorder": {"output": str(bag)}, "sim_hardware": {"listen_port": port}, "driver": {"router_port": port}}
+    for node in document["nodes"]:
+        node["parameters"] = {**(node.get("parameters") or {}), **extra.get(node["name"], {})}
+    path = folder / "bringup.yaml"
+    path.write_text(yaml.safe_dump(document), encoding="utf-8")
+    return path
+
+
+def test_rh5_up_no_record_runs_the_suite_without_the_recorder(tmp_path: Path) -> None:
+    bag = tmp_path / "bag"
+    command = [str(Path(sys.prefix) / "bin" / "rh5"), "up", "--no-record", "--duration", "2"]
+    command += ["--bringup", str(_bringup_file(tmp_path, bag)), "--log-dir", str(tmp_path / "log")]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == 0, done.stderr
+    assert "6 nodes running: control, driver, mapper, planner, sim_hardware, stabilizer" in done.stdout
+    assert "recorder" not in done.stdout
+    assert not bag.exists()
+
+
+def test_the_suite_runs_on_when_the_recorder_is_killed(tmp_path: Path) -> None:
+    """`rh5 up` as a user runs it, with the recorder SIGKILLed once every node is up: `rh5 up` reports it, removes
+    the recorder's Fast DDS shared memory and keeps every other node running until it is stopped (Ctrl-C), when
+    they all exit cleanly; the recorder's bag is then made complete by `rh5 bag recover`."""
+    bag = tmp_path / "bag"
+    rh5 = str(Path(sys.prefix) / "bin" / "rh5")
+    command = [rh5, "up", "--duration", "120", "--bringup", str(_bringup_file(tmp_path, bag))]
+    command += ["--log-dir", str(tmp_path / "log")]
+    up = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert up.stdout is not None
+    assert up.stderr is not None
+    out, err = _Lines(up.stdout), _Lines(up.stderr)
+    try:
+        out.wait_for("nodes running", up, timeout_s=60.0)
+        children = _children(up.pid)
+        (recorder,) = [pid for pid, cmd in children.items() if "/recorder_node " in cmd]
+        owned = shm_files_of(recorder)
+        on_disk = _wait_for_recorded(bag, "/joint_states", up)
+        os.kill(recorder, signal.SIGKILL)
+        err.wait_for("recorder stopped on its own (exit -9); the other nodes keep running", up, timeout_s=30.0)
+        owned_bases = {name.removesuffix("_el") for name in owned if name.endswith("_el")}
+        in_use = in_use_shm_files()  # a 70xx port may already serve a new participant of another run
+        kept = {base for base in owned_bases if (SHM_DIR / base).exists() and f"{base}_el" not in in_use}
+        time.sleep(3.0)  # the suite runs on
+        assert up.poll() is None, err.text
+        alive = _children(up.pid)
+        assert set(alive) == set(children) - {recorder}, (alive, children)
+        up.send_signal(signal.SIGINT)
+        up.wait(timeout=60)
+    finally:
+        if up.poll() is None:
+            up.kill()
+            up.wait()
+        out.join()
+        err.join()
+    assert owned, "the recorder used Fast DDS shared memory"
+    assert len(owned_bases) >= 2, sorted(owned)  # its segment and its ports
+    assert not kept, f"what the dead recorder owned was removed at once: {sorted(kept)}"
+    left = {name for name in owned if (SHM_DIR / name).exists()}
+    unused = {name for name in left if not family(name) & in_use_shm_files()}  # another run's files may stay
+    assert not unused, f"files the dead recorder used that no live process uses were left: {sorted(unused)}"
+    assert "stopped on their own:" not in err.text, "the suite was not stopped because of the recorder"
+    assert "its bag keeps every chunk written so far" in err.text
+    exits = dict(line.split(" exit ") for line in out.lines if " exit " in line)
+    exits = {name.strip(): int(code) for name, code in exits.items()}
+    assert exits.pop("recorder") == -signal.SIGKILL
+    assert set(exits) == {"sim_hardware", "control", "planner"}  # control hosts the driver, mapper and stabilizer
+    assert all(code == 0 for code in exits.values()), out.text
+    assert up.returncode == 1, "a node died: rh5 up says so in its exit code"
+    recovered = subprocess.run([rh5, "bag", "recover", str(bag)], capture_output=True, text=True, check=False)
+    assert recovered.returncode == 0, recovered.stderr
+    with AnyReader([bag]) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        assert sum(1 for _ in reader.messages()) == sum(counts.values())
+    assert counts["/joint_states"] >= on_disk > 0, "every chunk complete at the kill is read back"

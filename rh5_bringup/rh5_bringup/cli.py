@@ -1,4 +1,5 @@
-"""The ``rh5`` command line: start the suite (``rh5 up``), run experiments (``rh5 experiment``), write reports."""
+"""The ``rh5`` command line: start the suite (``rh5 up``), run experiments (``rh5 experiment``), write reports,
+describe and recover bags (``rh5 bag``, bag_cli.py)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from rh5_bringup.bag_cli import add_bag_parser, bag_command
 from rh5_bringup.launcher import Bringup, SuiteRun, check_parameter_names, load_bringup
 from rh5_bringup.session import SuiteSession, run_dir
 from rh5_msgs_py.ros_env import chosen_domain_id
@@ -198,6 +200,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--start", action="store_true", help="once up: plan the planner's motion, enable the driver, start playback"
     )
     up_parser.add_argument("--separate", action="store_true", help=SEPARATE_HELP)
+    up_parser.add_argument("--no-record", action="store_true", help="run without the recorder (no bag)")
     exp = commands.add_parser("experiment", help="plan, run on the simulated robot, record and report a motion")
     exp.add_argument("motion", help="motion name (rh5-plan --list)")
     exp.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="motion parameter override")
@@ -217,6 +220,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     for sub in (up_parser, exp):
         sub.add_argument("--domain-id", type=int, default=None, help=DOMAIN_HELP)
+    add_bag_parser(commands)
     rep = commands.add_parser("report", help="write the report of a recorded experiment bag")
     rep.add_argument("bag", type=Path, help="rosbag2 folder")
     rep.add_argument("--joints", default="", help="extra joints to plot, comma separated")
@@ -224,25 +228,27 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def up_command(args: argparse.Namespace) -> int:
+    """``rh5 up``: check the arguments (exit 2 with the reason), then run the suite."""
+    if args.duration is not None and args.duration <= 0:
+        print("rh5 up: --duration must be positive", file=sys.stderr)
+        return 2
+    try:
+        domain = chosen_domain_id(args.domain_id)
+    except ValueError as err:
+        print(f"rh5 up: {err}", file=sys.stderr)
+        return 2
+    bringup = replace(load_bringup(args.bringup).resolved(sim=args.sim), composed=not args.separate)
+    if args.no_record:
+        bringup = bringup.without("recorder")
+    return up(bringup, args.duration, args.log_dir, start=args.start, domain=domain)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``rh5``."""
     args = build_parser().parse_args(argv)
-    if args.command == "up":
-        if args.duration is not None and args.duration <= 0:
-            print("rh5 up: --duration must be positive", file=sys.stderr)
-            return 2
-        try:
-            domain = chosen_domain_id(args.domain_id)
-        except ValueError as err:
-            print(f"rh5 up: {err}", file=sys.stderr)
-            return 2
-        bringup = replace(load_bringup(args.bringup).resolved(sim=args.sim), composed=not args.separate)
-        return up(bringup, args.duration, args.log_dir, start=args.start, domain=domain)
-    if args.command == "experiment":
-        return experiment(args)
-    if args.command == "report":
-        return report(args)
-    return 2
+    commands = {"up": up_command, "experiment": experiment, "report": report, "bag": bag_command}
+    return commands[args.command](args)
 
 
 if __name__ == "__main__":

@@ -226,6 +226,16 @@ def _await_trajectory(session: SuiteSession, monitor: _Monitor, duration_s: floa
     raise ExperimentError(msg)
 
 
+def _stopped(session: SuiteSession) -> str:
+    """Why the experiment must stop because nodes died ("" if none did). A lost recorder would let the suite run
+    on (``rh5 up`` does), but an experiment is its recording: it stops too, and says so."""
+    if crashed := session.crashed():
+        return f"nodes stopped on their own: {crashed}"
+    if lost := session.lost():
+        return f"nodes stopped on their own: {lost} (an experiment does not run on without its recording)"
+    return ""
+
+
 def _play(
     session: SuiteSession, settings: ExperimentSettings, duration_s: float, progress: Callable[[str], None]
 ) -> tuple[str, bool]:
@@ -256,8 +266,8 @@ def _play(
             status.show(f"{settings.motion}: {monitor.state:<9} {now - started:6.1f} s{z}", key=monitor.state)
             if fell:
                 return "fell", True
-            if session.crashed():
-                return f"nodes stopped on their own: {session.crashed()}", False
+            if stopped := _stopped(session):
+                return stopped, False
             if monitor.state in ("holding", "stopped") and finished_at is None:
                 finished_at = now
                 if "finished" not in monitor.reason:

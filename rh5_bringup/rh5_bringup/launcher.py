@@ -22,6 +22,7 @@ from typing import Any
 
 import yaml
 
+from rh5_bringup.fastdds_shm import remove_stale, shm_files_of
 from rh5_msgs_py.node_runtime import parse_summary
 from rh5_msgs_py.parameters import load_spec
 from rh5_msgs_py.ros_env import DomainLease, suite_environment
@@ -42,6 +43,11 @@ class NodeSpec:
     hosts: tuple[str, ...] = ()
     """Nodes of the bringup this node's process hosts (the control process: driver, mapper, stabilizer). They
     run inside it when the bringup is composed, and on their own, without this node, when it is not."""
+    essential: bool = True
+    """False: when this node's process dies the rest of the suite keeps running (the recorder: the robot must
+    not stop because its recording did); the launcher reports it and removes its shared memory."""
+    lost_hint: str = ""
+    """What to tell the user when this non-essential node died (e.g. how to recover its bag)."""
 
 
 @dataclass(frozen=True)
@@ -102,6 +108,19 @@ class Bringup:
                 bringup = bringup.with_parameters(node, **parameters)
         return bringup
 
+    def without(self, node_name: str) -> Bringup:
+        """A copy without ``node_name`` (``rh5 up --no-record``: without the recorder); a hosted node cannot be
+        left out (its host runs it)."""
+        if node_name not in {n.name for n in self.nodes}:
+            msg = f"no node {node_name!r} in the bringup (have {[n.name for n in self.nodes]})"
+            raise KeyError(msg)
+        if any(node_name in n.hosts for n in self.nodes):
+            msg = f"{node_name!r} is hosted by another node's process and cannot be left out"
+            raise ValueError(msg)
+        nodes = tuple(n for n in self.nodes if n.name != node_name)
+        arguments = tuple(a for a in self.arguments if a.node != node_name)
+        return replace(self, nodes=nodes, arguments=arguments)
+
     def with_parameters(self, node_name: str, **parameters: Any) -> Bringup:
         """A copy in which ``node_name`` gets extra/overriding parameters."""
         if node_name not in {n.name for n in self.nodes}:
@@ -128,6 +147,8 @@ def load_bringup(path: Path | None = None) -> Bringup:
             dict(n.get("parameters") or {}),
             tuple((str(src), str(dst)) for src, dst in (n.get("remappings") or {}).items()),
             tuple(str(name) for name in n.get("hosts") or ()),
+            bool(n.get("essential", True)),
+            str(n.get("lost_hint", "")),
         )
         for n in document["nodes"]
     )
@@ -232,6 +253,8 @@ class NodeProcess:
     stdout_path: Path
     stderr_path: Path
     hosted: tuple[NodeSpec, ...] = ()
+    shm_files: set[str] = field(default_factory=set)
+    """The Fast DDS shared-memory files the process was seen using (removed if it dies without doing so)."""
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -266,6 +289,8 @@ class SuiteRun:
         self.domain_id = self._lease.domain_id if self._lease is not None else domain_id
         self.env = suite_environment(self.domain_id, self.log_dir)
         self.processes: list[NodeProcess] = []
+        self.removed_shm: list[str] = []
+        """Fast DDS shared-memory files removed after killed nodes."""
 
     def start(self) -> None:
         """Start every node in description order."""
@@ -297,6 +322,35 @@ class SuiteRun:
         """Processes that have stopped on their own."""
         return [p for p in self.processes if p.process.poll() is not None]
 
+    def note_shared_memory(self) -> None:
+        """Note which Fast DDS shared-memory files each running process uses (see :meth:`clean_up_after`)."""
+        for proc in self.processes:
+            if proc.process.poll() is None:
+                proc.shm_files |= shm_files_of(proc.process.pid)
+
+    def clean_up_after(self, proc: NodeProcess) -> list[str]:
+        """Remove the shared-memory files a dead process left that no live process uses; returns their names."""
+        if proc.process.poll() is None:
+            msg = f"{proc.spec.name} is still running"
+            raise RuntimeError(msg)
+        removed = remove_stale(proc.shm_files)
+        self.removed_shm += removed
+        return removed
+
+    def killed(self) -> bool:
+        """Whether a node process ended by a signal (it left its Fast DDS shared memory)."""
+        return any(p.process.returncode is not None and p.process.returncode < 0 for p in self.processes)
+
+    def remove_stale_shared_memory(self) -> list[str]:
+        """If a node was killed: remove the shared memory of every node that no live participant owns any more
+        (a killed process never drops its references to the other participants' ports, so they stay even
+        after their owners exit cleanly). Returns the names removed."""
+        if not self.killed():
+            return []
+        removed = remove_stale(set().union(*(p.shm_files for p in self.processes)))
+        self.removed_shm += removed
+        return removed
+
     def exited_nodes(self) -> set[str]:
         """Nodes whose process has stopped."""
         return {name for p in self.exited() for name in p.names}
@@ -317,23 +371,37 @@ class SuiteRun:
         return "\n".join(lines)
 
     def stop(self, grace_s: float = STOP_GRACE_S) -> dict[str, int]:
-        """Stop every node, newest first: SIGINT, then SIGTERM and SIGKILL after ``grace_s``. Idempotent."""
+        """Stop every node, newest first: SIGINT, then SIGTERM and SIGKILL after ``grace_s``. Idempotent.
+        Then removes the shared memory a killed node left (:meth:`remove_stale_shared_memory`)."""
         for proc in reversed(self.processes):
             if proc.process.poll() is None:
                 proc.process.send_signal(signal.SIGINT)
         deadline = time.monotonic() + grace_s
         for proc in self.processes:
             for sig in (signal.SIGTERM, signal.SIGKILL):
-                try:
-                    proc.process.wait(timeout=max(0.1, deadline - time.monotonic()))
+                if self._wait(proc, max(0.1, deadline - time.monotonic())):
                     break
-                except subprocess.TimeoutExpired:
-                    os.killpg(proc.process.pid, sig)
-                    deadline = time.monotonic() + 2.0
+                os.killpg(proc.process.pid, sig)
+                deadline = time.monotonic() + 2.0
             proc.process.wait()
+        self.remove_stale_shared_memory()
         if self._lease is not None:
             self._lease.release()
         return {name: p.process.returncode for p in self.processes for name in p.names}
+
+    def _wait(self, proc: NodeProcess, timeout_s: float) -> bool:
+        """Wait up to ``timeout_s`` for ``proc`` to exit; True if it did. After a node was killed, whatever the
+        others leave is removed as soon as each exits (before another run's participant takes a port over)."""
+        deadline = time.monotonic() + timeout_s
+        exited = len(self.exited())
+        while proc.process.poll() is None:
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.02)
+            if len(self.exited()) != exited:
+                exited = len(self.exited())
+                self.remove_stale_shared_memory()
+        return True
 
     def __enter__(self) -> SuiteRun:
         self.start()

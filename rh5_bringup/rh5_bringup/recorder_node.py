@@ -1,5 +1,8 @@
 """The recorder node: every topic of the suite into a rosbag2-compatible MCAP bag (rh5_bringup.recording).
 
+Chunks are zstd-compressed by default (parameter ``compression``: ``none`` turns it off), in the
+writer thread; ``max_bag_size``/``max_bag_duration_s`` split the bag into several MCAP files.
+
 Subscriptions are raw (serialized CDR, never deserialized) with the contract's reliability and
 durability and a history of at least ``queue_depth``, so a 1 kHz best-effort stream waits in DDS
 while this process is descheduled. No executor runs them: a taker thread takes what arrived every
@@ -95,6 +98,10 @@ class RecorderNode(SuiteNode):
             self.bag_path,
             chunk_size=int(params["chunk_size"]),
             chunk_max_age_s=float(params["chunk_max_age_s"]),
+            compression="" if params["compression"] == "none" else str(params["compression"]),
+            compression_level=int(params["compression_level"]),
+            max_bag_size=int(params["max_bag_size"]),
+            max_bag_duration_s=float(params["max_bag_duration_s"]),
             custom_data={"recorder": "rh5_bringup/recorder_node"},
         )
         bag.open()

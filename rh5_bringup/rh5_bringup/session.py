@@ -8,13 +8,16 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 import time
+from collections.abc import Callable
 from datetime import datetime
 from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from rh5_bringup.launcher import Bringup, SuiteRun, wait_for_nodes
+from rh5_bringup.fastdds_shm import shm_files_of
+from rh5_bringup.launcher import Bringup, NodeProcess, SuiteRun, wait_for_nodes
 
 
 def run_dir(root: Path, prefix: str = "rh5") -> Path:
@@ -22,12 +25,35 @@ def run_dir(root: Path, prefix: str = "rh5") -> Path:
     return Path(root) / datetime.now().strftime(f"{prefix}_%Y%m%d_%H%M%S_%f")
 
 
+OBSERVER_RELEASE_S = 5.0
+"""How long closing waits for the observer's Fast DDS files to be released (its transport threads end)."""
+
+
+def _wait_until_released(timeout_s: float) -> None:
+    """Until this process holds no Fast DDS shared-memory file any more, or ``timeout_s`` passed."""
+    deadline = time.monotonic() + timeout_s
+    while shm_files_of(os.getpid()) and time.monotonic() < deadline:
+        time.sleep(0.05)
+
+
+def _to_stderr(text: str) -> None:
+    print(f"rh5: {text}", file=sys.stderr, flush=True)
+
+
 class SuiteSession:
     """Start ``bringup`` in its own ROS domain with an observer node; ``close`` stops everything.
 
     SIGINT/SIGTERM only set ``stop_requested`` (the nodes get their own SIGINT from ``close``), so a
-    Ctrl-C in the middle of a step lets the caller finish cleanly.
+    Ctrl-C in the middle of a step lets the caller finish cleanly. A node that is not essential (the
+    recorder) may die without stopping the suite: :meth:`crashed` leaves it out, reports it once through
+    :attr:`report` and removes the Fast DDS shared memory it left; :meth:`lost` names such nodes, for a
+    caller that cannot go on without them.
     """
+
+    report: Callable[[str], None] = staticmethod(_to_stderr)
+    """Where a lost non-essential node is reported (stderr)."""
+    shm_refresh_s: float = 5.0
+    """How often :meth:`crashed` notes the processes' shared-memory files again."""
 
     def __init__(
         self, bringup: Bringup, log_dir: Path, observer_name: str = "rh5_launcher", domain_id: int | None = None
@@ -36,6 +62,8 @@ class SuiteSession:
         self.run = SuiteRun(bringup, log_dir, domain_id)  # None: a domain leased free on this machine
         self.stop_requested = False
         self.exit_codes: dict[str, int] = {}
+        self._reported: set[str] = set()
+        self._shm_noted_at: float | None = None
         self._previous = {sig: signal.signal(sig, self._request_stop) for sig in (signal.SIGINT, signal.SIGTERM)}
         os.environ.update(self.run.env)  # the observer joins the run's domain
         import rclpy  # noqa: PLC0415 (after the environment is set)
@@ -54,17 +82,48 @@ class SuiteSession:
     def start(self, timeout_s: float = 20.0) -> set[str]:
         """Start the nodes; return those that never appeared in the graph (empty when all are up)."""
         self.run.start()
-        return wait_for_nodes(
+        missing = wait_for_nodes(
             self.node,
             self.bringup.node_names(),
             self.namespace,
             timeout_s,
             exited=self.run.exited_nodes,
         )
+        self.run.note_shared_memory()
+        self._shm_noted_at = time.monotonic()
+        return missing
 
     def crashed(self) -> list[str]:
-        """Nodes that stopped on their own."""
-        return [p.spec.name for p in self.run.exited()]
+        """Essential nodes that stopped on their own (the suite must stop). A non-essential one that stopped is
+        reported once, with its shared memory removed; the others keep running."""
+        now = time.monotonic()
+        if self._shm_noted_at is not None and now - self._shm_noted_at >= self.shm_refresh_s:
+            self.run.note_shared_memory()
+            self._shm_noted_at = now
+        exited = self.run.exited()
+        for proc in exited:
+            if not proc.spec.essential and proc.spec.name not in self._reported:
+                self._reported.add(proc.spec.name)
+                self._report_lost(proc)
+        return [p.spec.name for p in exited if p.spec.essential]
+
+    def lost(self) -> list[str]:
+        """Non-essential nodes that stopped on their own (the suite runs on without them)."""
+        return [p.spec.name for p in self.run.exited() if not p.spec.essential]
+
+    def _report_lost(self, proc: NodeProcess) -> None:
+        removed = self.run.clean_up_after(proc)
+        last = proc.last_error()
+        cleaned = f" (removed {len(removed)} stale Fast DDS shared-memory files)" if removed else ""
+        lines = [
+            f"{proc.spec.name} stopped on its own (exit {proc.process.returncode}); the other nodes keep running"
+            + cleaned
+        ]
+        if last:
+            lines.append(f"  its last log line: {last}")
+        if proc.spec.lost_hint:
+            lines.append(f"  {proc.spec.lost_hint}")
+        self.report("\n".join(lines))
 
     def sleep(self, seconds: float) -> None:
         """Wait, serving the observer's subscriptions, unless a stop is requested."""
@@ -82,8 +141,15 @@ class SuiteSession:
             try:
                 self.exit_codes = self.run.stop()
             finally:
+                context = self.node.context
                 self.node.destroy_node()
                 rclpy.try_shutdown()
+                context.destroy()  # the observer's participant ends now, not whenever the context is collected
+                if self.run.killed():
+                    _wait_until_released(OBSERVER_RELEASE_S)
+                    self.run.remove_stale_shared_memory()  # again: the observer's own port, now that it ended
+                if self.run.removed_shm:
+                    self.report(f"removed {len(self.run.removed_shm)} Fast DDS shared-memory files killed nodes left")
                 for sig, handler in self._previous.items():
                     signal.signal(sig, handler)
         return self.exit_codes

@@ -122,3 +122,28 @@ def test_experiment_rejects_bad_input_before_starting_anything(
     assert main([*argv, "--out", str(tmp_path)]) == 2
     assert reason in capsys.readouterr().err
     assert not any(tmp_path.iterdir())  # nothing planned, nothing started
+
+
+def test_only_the_recorder_may_die_without_stopping_the_suite() -> None:
+    bringup = load_bringup()
+    assert {n.name for n in bringup.nodes if not n.essential} == {"recorder"}
+    assert "rh5 bag recover" in next(n for n in bringup.nodes if n.name == "recorder").lost_hint
+
+
+def test_without_leaves_one_node_out_but_never_a_hosted_one() -> None:
+    bringup = load_bringup()
+    unrecorded = bringup.without("recorder")
+    assert "recorder" not in unrecorded.node_names()
+    assert unrecorded.node_names() == bringup.node_names() - {"recorder"}
+    assert [spec.name for spec, _ in unrecorded.processes()] == ["sim_hardware", "control", "planner"]
+    with pytest.raises(ValueError, match="hosted"):
+        bringup.without("driver")
+    with pytest.raises(KeyError, match="no node"):
+        bringup.without("nope")
+    assert build_parser().parse_args(["up", "--no-record"]).no_record
+
+
+def test_bag_subcommands_refuse_a_folder_that_is_not_a_bag(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    for command in ("info", "recover"):
+        assert main(["bag", command, str(tmp_path)]) == 2
+        assert f"rh5 bag {command}: {tmp_path}: " in capsys.readouterr().err

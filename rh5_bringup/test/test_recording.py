@@ -26,12 +26,16 @@ from rosbags.rosbag2 import Reader, ReaderError
 from rosbags.typesys import Stores, get_typestore
 
 from rh5_bringup.recording import (
+    BagRecoveryError,
     BagWriter,
     BagWriterError,
     OfferedQos,
     QueuedBagWriter,
+    bag_files,
+    format_bag_info,
     is_complete,
     mcap_file_of,
+    read_bag_info,
     recover_bag,
     type_description_hash,
 )
@@ -122,11 +126,17 @@ def write_session(bag: BagWriter, n_states: int = 500) -> dict[str, list[tuple[i
     return written
 
 
+@pytest.fixture(params=["zstd", ""], ids=["zstd", "uncompressed"])
+def compression(request: pytest.FixtureRequest) -> str:
+    """Every bag test runs with zstd chunks (the default) and with uncompressed ones."""
+    return str(request.param)
+
+
 @pytest.fixture
-def closed_bag(tmp_path: Path) -> tuple[Path, dict[str, list[tuple[int, bytes]]]]:
+def closed_bag(tmp_path: Path, compression: str) -> tuple[Path, dict[str, list[tuple[int, bytes]]]]:
     """A bag of three topics, written in many small chunks and closed."""
     path = tmp_path / "session"
-    with BagWriter(path, chunk_size=16 * 1024) as bag:
+    with BagWriter(path, chunk_size=16 * 1024, compression=compression) as bag:
         written = write_session(bag)
     return path, written
 
@@ -190,7 +200,7 @@ def test_rosbags_reads_every_message_back_exactly(closed_bag: Any) -> None:
         assert plain.message_count == sum(len(v) for v in written.values())
 
 
-def test_mcap_ros2_decodes_every_message_with_crcs_and_summary(closed_bag: Any) -> None:
+def test_mcap_ros2_decodes_every_message_with_crcs_and_summary(closed_bag: Any, compression: str) -> None:
     path, written = closed_bag
     with mcap_file_of(path).open("rb") as stream:
         reader = make_reader(stream, validate_crcs=True, decoder_factories=[DecoderFactory()])
@@ -199,6 +209,12 @@ def test_mcap_ros2_decodes_every_message_with_crcs_and_summary(closed_bag: Any) 
         assert summary is not None
         assert summary.statistics.message_count == sum(len(v) for v in written.values())
         assert summary.statistics.chunk_count == len(summary.chunk_indexes) > 10
+        for index in summary.chunk_indexes:
+            assert index.compression == compression
+            if compression:  # JointStates of a counter compress well
+                assert index.compressed_size < index.uncompressed_size / 2
+            else:
+                assert index.compressed_size == index.uncompressed_size
         schemas = {s.name: s for s in summary.schemas.values()}
         assert set(schemas) == {JOINT_STATE, WRENCH, STRING}
         assert all(s.encoding == "ros2msg" for s in schemas.values())
@@ -313,7 +329,8 @@ def test_an_old_chunk_is_written_and_metadata_follows(tmp_path: Path) -> None:
     clock.now = 1_000_000_000
     assert bag.poll()
     assert bag.pending_messages == 0
-    assert mcap_file_of(path).stat().st_size > size_before + 3 * 400
+    assert mcap_file_of(path).stat().st_size > size_before
+    assert len(stream_messages(mcap_file_of(path))) == 3
     assert metadata_counts(path) == {"/joint_states": 3}
     bag.write(topic, T0 + 10, joint_state(10))
     clock.now = 1_600_000_000
@@ -345,10 +362,10 @@ def chunk_ends(path: Path) -> list[int]:
 
 
 @pytest.fixture
-def crashed_bag(tmp_path: Path) -> tuple[Path, dict[str, list[tuple[int, bytes]]], int]:
+def crashed_bag(tmp_path: Path, compression: str) -> tuple[Path, dict[str, list[tuple[int, bytes]]], int]:
     """A bag whose writer died: complete chunks on disk, the open chunk lost. Returns (bag, written, kept)."""
     path = tmp_path / "crashed"
-    bag = BagWriter(path, chunk_size=16 * 1024)
+    bag = BagWriter(path, chunk_size=16 * 1024, compression=compression)
     bag.open()
     written = write_session(bag, n_states=300)
     kept = bag.message_count - bag.pending_messages
@@ -417,6 +434,126 @@ def test_recovering_a_complete_bag_changes_nothing(closed_bag: Any) -> None:
     assert not result.recovered
     assert result.counts["/joint_states"] == 500
     assert {p.name: p.read_bytes() for p in path.iterdir()} == before
+
+
+def test_bag_info_reads_a_complete_bag_from_its_summary(closed_bag: Any, compression: str) -> None:
+    path, written = closed_bag
+    info = read_bag_info(path)
+    assert info.complete
+    assert [f.path.name for f in info.files] == ["session_0.mcap"]
+    assert {t.name: t.count for t in info.topics} == {k: len(v) for k, v in written.items()}
+    assert {t.name: t.type for t in info.topics}["/joint_states"] == JOINT_STATE
+    times = [t for v in written.values() for t, _ in v]
+    assert (info.start_ns, info.end_ns) == (min(times), max(times))
+    (file,) = info.files
+    assert file.compressions == (compression or "none",)
+    assert file.records_bytes > 500 * 32 * 8
+    assert (file.stored_bytes < file.records_bytes / 2) if compression else (file.stored_bytes == file.records_bytes)
+    text = format_bag_info(info)
+    assert "complete" in text
+    assert "INCOMPLETE" not in text
+    assert f"Messages:     {sum(len(v) for v in written.values())}" in text
+
+
+def test_bag_info_of_a_killed_bag_counts_its_whole_chunks_and_says_to_recover(crashed_bag: Any) -> None:
+    path, written, kept = crashed_bag
+    info = read_bag_info(path)
+    assert not info.complete
+    assert info.message_count == kept == len(stream_messages(mcap_file_of(path)))
+    assert "INCOMPLETE (no summary: run `rh5 bag recover`)" in format_bag_info(info)
+    recover_bag(path)
+    after = read_bag_info(path)
+    assert after.complete
+    assert {t.name: t.count for t in after.topics} == {t.name: t.count for t in info.topics}
+    assert sum(t.count for t in after.topics) == kept < sum(len(v) for v in written.values())
+
+
+def test_bag_info_refuses_a_folder_without_mcap_files(tmp_path: Path) -> None:
+    with pytest.raises(BagRecoveryError, match="not a bag folder"):
+        read_bag_info(tmp_path)
+
+
+# --- splitting ----------------------------------------------------------------------------------------------------
+
+
+def read_all(path: Path) -> dict[str, list[tuple[int, bytes]]]:
+    """Every message of a bag folder, per topic, as rosbags reads it (all split files, via metadata.yaml)."""
+    got: dict[str, list[tuple[int, bytes]]] = {}
+    with AnyReader([path]) as reader:
+        for connection, timestamp, raw in reader.messages():
+            got.setdefault(connection.topic, []).append((timestamp, bytes(raw)))
+            reader.deserialize(raw, connection.msgtype)
+    return got
+
+
+def mcap_summary(path: Path) -> Any:
+    """The summary mcap's seeking reader finds in one file (CRC-checked)."""
+    with path.open("rb") as stream:
+        summary = make_reader(stream, validate_crcs=True).get_summary()
+    assert summary is not None, path
+    return summary
+
+
+def test_a_bag_split_by_size_is_read_whole_and_every_file_stands_alone(tmp_path: Path, compression: str) -> None:
+    path = tmp_path / "sized"
+    limit = 64 * 1024
+    with BagWriter(path, chunk_size=8 * 1024, compression=compression, max_bag_size=limit) as bag:
+        written = write_session(bag, n_states=2000)
+        files = bag.files
+    assert [f.name for f in files] == [f"sized_{k}.mcap" for k in range(len(files))]
+    assert len(files) >= 3
+    assert bag_files(path) == files
+    assert all(f.stat().st_size >= limit for f in files[:-1]), "a file is split only once it reached the limit"
+    assert read_all(path) == written
+    info = yaml.safe_load((path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["relative_file_paths"] == [f.name for f in files]
+    per_file = [mcap_summary(f).statistics.message_count for f in files]
+    assert [f["message_count"] for f in info["files"]] == per_file
+    assert sum(per_file) == info["message_count"] == sum(len(v) for v in written.values())
+    for f in files:
+        summary = mcap_summary(f)
+        assert {c.topic for c in summary.channels.values()} == set(written)
+    assert read_bag_info(path).message_count == sum(per_file)
+
+
+def test_a_bag_split_by_duration_starts_a_file_per_period_of_log_time(tmp_path: Path) -> None:
+    path = tmp_path / "timed"
+    with BagWriter(path, chunk_size=16 * 1024, max_bag_duration_s=1.0) as bag:
+        topic = bag.add_topic("/joint_states", JOINT_STATE, [STREAM])
+        for i in range(2500):  # 2.5 s at 1 kHz
+            bag.write(topic, T0 + i * 1_000_000, joint_state(i, n=4))
+        files = bag.files
+    assert len(files) == 3
+    spans = []
+    for f in files:
+        stats = mcap_summary(f).statistics
+        spans.append((stats.message_start_time, stats.message_end_time, stats.message_count))
+    assert [n for *_, n in spans] == [1000, 1000, 500]
+    assert [start for start, *_ in spans] == [T0, T0 + 1_000_000_000, T0 + 2_000_000_000]
+    assert len(read_all(path)["/joint_states"]) == 2500
+
+
+def test_a_killed_split_bag_is_recovered_file_by_file(tmp_path: Path) -> None:
+    path = tmp_path / "killed_split"
+    bag = BagWriter(path, chunk_size=8 * 1024, max_bag_size=48 * 1024, compression="")
+    bag.open()
+    written = write_session(bag, n_states=1500)
+    files = bag.files
+    kept = bag.message_count - bag.pending_messages
+    bag.abort()
+    assert len(files) >= 2
+    finished = {f: f.read_bytes() for f in files[:-1]}
+    assert all(is_complete(f) for f in finished)
+    assert not is_complete(files[-1])
+    result = recover_bag(path)
+    assert result.recovered
+    assert result.message_count == kept
+    assert {f: f.read_bytes() for f in files[:-1]} == finished, "complete files are left alone"
+    got = read_all(path)
+    assert sum(len(v) for v in got.values()) == kept
+    for topic, messages in got.items():
+        assert messages == written[topic][: len(messages)]
+    assert sum(mcap_summary(f).statistics.message_count for f in files) == kept
 
 
 # --- the queued writer --------------------------------------------------------------------------------------------

@@ -14,4 +14,4 @@ class BagWriterError(RecordingError):
 
 
 class BagRecoveryError(RecordingError):
-    """A bag cannot be recovered (no MCAP header, not the ros2 profile, compressed chunks)."""
+    """A bag cannot be recovered (no MCAP header, a chunk compression other than zstd or none)."""

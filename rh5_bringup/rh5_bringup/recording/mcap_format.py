@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Final, NamedTuple
 
+from rh5_bringup.recording.compression import decompress
+
 __all__ = [
     "MAGIC",
     "MESSAGE_FIXED_SIZE",
@@ -35,8 +37,11 @@ __all__ = [
     "metadata_record",
     "parse_channel",
     "parse_chunk",
+    "parse_chunk_index",
+    "parse_footer",
     "parse_metadata",
     "parse_schema",
+    "parse_statistics",
     "schema_record",
     "summary_and_footer",
 ]
@@ -113,10 +118,19 @@ def channel_record(channel_id: int, schema_id: int, topic: str, encoding: str, m
     return _record(Opcode.CHANNEL, content)
 
 
-def chunk_record(start_time: int, end_time: int, records: bytes | bytearray, crc: int) -> bytes:
-    """An uncompressed chunk holding ``records`` (message records) logged in [start_time, end_time]."""
-    head = _CHUNK_FIELDS.pack(start_time, end_time, len(records), crc) + _string("") + _U64.pack(len(records))
-    return _PREFIX.pack(Opcode.CHUNK, len(head) + len(records)) + head + records
+def chunk_record(
+    start_time: int,
+    end_time: int,
+    records_size: int,
+    crc: int,
+    stored: bytes | bytearray,
+    *,
+    compression: str = "",
+) -> bytes:
+    """A chunk of message records logged in [start_time, end_time]: ``records_size`` bytes with CRC ``crc``
+    before compression, ``stored`` as written (the records themselves when ``compression`` is empty)."""
+    head = _CHUNK_FIELDS.pack(start_time, end_time, records_size, crc) + _string(compression) + _U64.pack(len(stored))
+    return _PREFIX.pack(Opcode.CHUNK, len(head) + len(stored)) + head + stored
 
 
 def message_index_record(channel_id: int, entries: bytes) -> bytes:
@@ -150,17 +164,21 @@ class ChunkIndex:
     message_index_offsets: Mapping[int, int]
     message_index_length: int
     records_size: int
+    """Bytes of the chunk's message records, uncompressed."""
+    compression: str = ""
+    stored_size: int | None = None
+    """Bytes of the records as stored in the chunk (compressed); None: uncompressed, ``records_size``."""
 
     def encode(self) -> bytes:
-        """The chunk index record (uncompressed: compressed and uncompressed sizes are equal)."""
+        """The chunk index record."""
         offsets = b"".join(_U16.pack(cid) + _U64.pack(off) for cid, off in self.message_index_offsets.items())
         content = (
             _CHUNK_INDEX_HEAD.pack(self.start_time, self.end_time, self.offset, self.length)
             + _U32.pack(len(offsets))
             + offsets
             + _U64.pack(self.message_index_length)
-            + _string("")
-            + _U64.pack(self.records_size)
+            + _string(self.compression)
+            + _U64.pack(self.records_size if self.stored_size is None else self.stored_size)
             + _U64.pack(self.records_size)
         )
         return _record(Opcode.CHUNK_INDEX, content)
@@ -309,33 +327,75 @@ def parse_metadata(content: memoryview) -> tuple[str, dict[str, str]]:
 
 
 class ChunkView(NamedTuple):
-    """The fields of a chunk record and a view of its (uncompressed) records."""
+    """The fields of a chunk record and a view of its records, decompressed."""
 
     start_time: int
     end_time: int
     crc: int
     compression: str
     records: memoryview
+    stored_size: int
+    """Bytes of the records as stored (compressed)."""
 
 
 def parse_chunk(content: memoryview) -> ChunkView:
-    """The chunk record's fields; ValueError when its records are cut short or fail their CRC."""
+    """The chunk record's fields and decompressed records; ValueError when they are cut short, do not
+    decompress or fail their CRC, LookupError for a compression other than zstd or none."""
     start, end, size, crc = _CHUNK_FIELDS.unpack_from(content, 0)
     compression, position = _read_string(content, _CHUNK_FIELDS.size)
-    (stored,) = _U64.unpack_from(content, position)
-    records = content[position + _U64.size : position + _U64.size + stored]
-    if len(records) != stored:
-        msg = f"chunk records cut short: {len(records)} of {stored} bytes"
+    (stored_size,) = _U64.unpack_from(content, position)
+    stored = content[position + _U64.size : position + _U64.size + stored_size]
+    if len(stored) != stored_size:
+        msg = f"chunk records cut short: {len(stored)} of {stored_size} bytes"
         raise ValueError(msg)
-    if not compression and (stored != size or (crc and zlib.crc32(records) != crc)):
+    records = memoryview(decompress(compression, stored, size))
+    if len(records) != size or (crc and zlib.crc32(records) != crc):
         msg = "chunk records do not match their size or CRC"
         raise ValueError(msg)
-    return ChunkView(start, end, crc, compression, records)
+    return ChunkView(start, end, crc, compression, records, stored_size)
 
 
 def iter_chunk_messages(records: memoryview) -> Iterator[tuple[int, int, int]]:
-    """(channel id, log time, offset in the chunk) of every message record in an uncompressed chunk."""
+    """(channel id, log time, offset in the chunk) of every message record of a chunk's (decompressed) records."""
     for record in iter_records(records, 0):
         if record.opcode == Opcode.MESSAGE:
             channel_id, _, log_time, _ = _MESSAGE_FIELDS.unpack_from(record.content, 0)
             yield channel_id, log_time, record.offset
+
+
+def parse_statistics(content: memoryview) -> Statistics:
+    """The statistics record's content (the attachment count, always 0 here, is not kept)."""
+    (message_count, schemas, channels, _, metadata, chunks, start, end) = _STATISTICS_HEAD.unpack_from(content, 0)
+    (size,) = _U32.unpack_from(content, _STATISTICS_HEAD.size)
+    position = _STATISTICS_HEAD.size + _U32.size
+    counts = {}
+    for offset in range(position, position + size, _U16.size + _U64.size):
+        (channel_id,) = _U16.unpack_from(content, offset)
+        (counts[channel_id],) = _U64.unpack_from(content, offset + _U16.size)
+    statistics = Statistics(schemas, channels, metadata, chunks, start, end, counts)
+    if statistics.message_count != message_count:  # a writer may count without per-channel counts
+        statistics.channel_message_counts = counts or {0: message_count}
+    return statistics
+
+
+def parse_chunk_index(content: memoryview) -> ChunkIndex:
+    """The chunk index record's content."""
+    start, end, offset, length = _CHUNK_INDEX_HEAD.unpack_from(content, 0)
+    (size,) = _U32.unpack_from(content, _CHUNK_INDEX_HEAD.size)
+    position = _CHUNK_INDEX_HEAD.size + _U32.size
+    offsets = {}
+    for entry in range(position, position + size, _U16.size + _U64.size):
+        (channel_id,) = _U16.unpack_from(content, entry)
+        (offsets[channel_id],) = _U64.unpack_from(content, entry + _U16.size)
+    position += size
+    (index_length,) = _U64.unpack_from(content, position)
+    compression, position = _read_string(content, position + _U64.size)
+    stored, records = struct.unpack_from("<QQ", content, position)
+    return ChunkIndex(start, end, offset, length, offsets, index_length, records, compression, stored)
+
+
+def parse_footer(data: memoryview) -> int | None:
+    """Where the summary section of a complete file starts (None: the file has no summary)."""
+    content_start = len(data) - len(MAGIC) - _FOOTER_LENGTH
+    (summary_start,) = _U64.unpack_from(data, content_start)
+    return summary_start or None

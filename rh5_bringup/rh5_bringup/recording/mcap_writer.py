@@ -1,8 +1,9 @@
 """A streaming MCAP writer whose file is readable up to its last chunk at every moment.
 
-Schemas and channels go to the file as they are added; messages collect in an uncompressed chunk
-that is written, with its message indexes, in one ``write`` to an unbuffered file when it reaches
-``chunk_size`` or when the owner closes it (the bag writer does so by age). A process killed at any
+Schemas and channels go to the file as they are added; messages collect in a chunk that is
+compressed (zstd by default, compression.py) and written, with its message indexes, in one ``write``
+to an unbuffered file when its records reach ``chunk_size`` or when the owner closes it (the bag
+writer does so by age). A process killed at any
 point thus leaves a file whose records up to the last complete chunk are intact (recovery.py ends
 it properly). ``finish`` adds the summary rosbag2's writer produces: schemas, channels, statistics,
 chunk indexes, metadata indexes and summary offsets, then the footer.
@@ -17,6 +18,7 @@ from typing import BinaryIO, Final
 
 import numpy as np
 
+from rh5_bringup.recording.compression import DEFAULT_COMPRESSION, DEFAULT_LEVEL, ChunkCompressor
 from rh5_bringup.recording.errors import BagWriterError
 from rh5_bringup.recording.mcap_format import (
     MAGIC,
@@ -57,7 +59,16 @@ def write_all(stream: BinaryIO, data: bytes | bytearray | memoryview) -> None:
 class McapStreamWriter:
     """Writes one MCAP file: open, add schemas/channels, write messages, close chunks, finish (or abort)."""
 
-    def __init__(self, path: Path, *, profile: str, library: str, chunk_size: int = DEFAULT_CHUNK_SIZE) -> None:
+    def __init__(
+        self,
+        path: Path,
+        *,
+        profile: str,
+        library: str,
+        chunk_size: int = DEFAULT_CHUNK_SIZE,
+        compression: str = DEFAULT_COMPRESSION,
+        compression_level: int = DEFAULT_LEVEL,
+    ) -> None:
         if chunk_size <= 0:
             msg = f"chunk_size must be positive, got {chunk_size}"
             raise ValueError(msg)
@@ -65,6 +76,7 @@ class McapStreamWriter:
         self.profile = profile
         self.library = library
         self.chunk_size = chunk_size
+        self._compressor = ChunkCompressor(compression, compression_level)
         self.statistics = Statistics()
         self._file: BinaryIO | None = None
         self._finished = False
@@ -76,6 +88,16 @@ class McapStreamWriter:
         self._reset_chunk()
 
     # --- lifecycle -------------------------------------------------------------------------------------------
+
+    @property
+    def position(self) -> int:
+        """Bytes written to the file so far."""
+        return self._position
+
+    @property
+    def compression(self) -> str:
+        """The chunks' compression: ``zstd`` or ``""``."""
+        return self._compressor.compression
 
     @property
     def is_open(self) -> bool:
@@ -183,7 +205,10 @@ class McapStreamWriter:
             return False
         self._require_open()
         records = self._chunk
-        chunk = chunk_record(self._chunk_start, self._chunk_end, records, zlib.crc32(records))
+        compression = self._compressor.compression
+        stored = self._compressor.compress(records)
+        crc = zlib.crc32(records)
+        chunk = chunk_record(self._chunk_start, self._chunk_end, len(records), crc, stored, compression=compression)
         chunk_offset = self._position
         index_offsets: dict[int, int] = {}
         indexes: list[bytes] = []
@@ -206,6 +231,8 @@ class McapStreamWriter:
                 index_offsets,
                 position - chunk_offset - len(chunk),
                 len(records),
+                compression,
+                len(stored),
             )
         )
         self.statistics.add_chunk(self._chunk_start, self._chunk_end, counts)

@@ -21,6 +21,7 @@ __all__ = [
     "METADATA_FILE",
     "METADATA_VERSION",
     "BagTopic",
+    "FileSpan",
     "OfferedQos",
     "bag_metadata",
     "dump_metadata",
@@ -122,8 +123,27 @@ class BagTopic:
         }
 
 
+@dataclass(frozen=True)
+class FileSpan:
+    """One MCAP file of a bag as metadata.yaml lists it: its name, first and last log time, messages."""
+
+    path: str
+    start_ns: int
+    end_ns: int
+    message_count: int
+
+    def entry(self) -> dict[str, Any]:
+        """The file's entry under ``files``."""
+        return {
+            "path": self.path,
+            "starting_time": {"nanoseconds_since_epoch": self.start_ns},
+            "duration": {"nanoseconds": max(0, self.end_ns - self.start_ns)},
+            "message_count": self.message_count,
+        }
+
+
 def bag_metadata(
-    relative_file: str,
+    files: str | Sequence[FileSpan],
     topics: Sequence[BagTopic],
     counts: Mapping[int, int],
     start_ns: int,
@@ -131,13 +151,16 @@ def bag_metadata(
     *,
     custom_data: Mapping[str, str] | None = None,
 ) -> dict[str, Any]:
-    """The ``rosbag2_bagfile_information`` mapping of a one-file MCAP bag.
+    """The ``rosbag2_bagfile_information`` mapping of an MCAP bag of one or several (split) files.
 
-    ``counts`` are messages per channel id; ``start_ns``/``end_ns`` the first and last log time
+    ``files``: the files in split order (one file's name: the whole bag is that file); ``counts`` are
+    messages per channel id over all files; ``start_ns``/``end_ns`` the first and last log time
     (rosbag2: receive time), the duration being their difference.
     """
     total = sum(counts.get(t.channel_id, 0) for t in topics)
     duration = max(0, end_ns - start_ns)
+    if isinstance(files, str):
+        files = [FileSpan(files, start_ns, end_ns, total)]
     return {
         "version": METADATA_VERSION,
         "storage_identifier": "mcap",
@@ -149,15 +172,8 @@ def bag_metadata(
         ],
         "compression_format": "",
         "compression_mode": "",
-        "relative_file_paths": [relative_file],
-        "files": [
-            {
-                "path": relative_file,
-                "starting_time": {"nanoseconds_since_epoch": start_ns},
-                "duration": {"nanoseconds": duration},
-                "message_count": total,
-            }
-        ],
+        "relative_file_paths": [f.path for f in files],
+        "files": [f.entry() for f in files],
         "custom_data": dict(custom_data) if custom_data else None,
         "ros_distro": _ROS_DISTRO,
     }

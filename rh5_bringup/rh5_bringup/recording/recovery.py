@@ -1,5 +1,7 @@
 """Complete a bag whose recorder was killed: keep every whole record, add the summary, rewrite metadata.yaml.
 
+Every split file of the bag is checked; only those without a footer (normally the last) are changed.
+
 A killed :class:`~rh5_bringup.recording.bag.BagWriter` leaves an MCAP file that ends inside (or
 right after) a chunk, without data end, summary or footer; streaming readers read it up to the
 cut, rosbags' reader refuses it. :func:`recover_bag` cuts the file after its last whole record,
@@ -18,7 +20,7 @@ from pathlib import Path
 
 import yaml
 
-from rh5_bringup.recording.bag import mcap_file_of
+from rh5_bringup.recording.bag import bag_files, mcap_file_of
 from rh5_bringup.recording.errors import BagRecoveryError
 from rh5_bringup.recording.mcap_format import (
     MAGIC,
@@ -40,13 +42,14 @@ from rh5_bringup.recording.mcap_format import (
 from rh5_bringup.recording.metadata import (
     METADATA_FILE,
     BagTopic,
+    FileSpan,
     OfferedQos,
     bag_metadata,
     dump_metadata,
     write_metadata_file,
 )
 
-__all__ = ["RecoveryResult", "is_complete", "recover_bag"]
+__all__ = ["FileScan", "RecoveryResult", "is_complete", "recover_bag", "scan_records"]
 
 _FOOTER_RECORD_SIZE = 1 + 8 + 20  # opcode, length, footer content
 _PAIR = struct.Struct("<QQ")
@@ -78,8 +81,8 @@ def is_complete(mcap_path: Path) -> bool:
 
 
 @dataclass
-class _Scan:
-    """The whole records of a cut file."""
+class FileScan:
+    """The whole records of a (possibly cut) file: what its summary would say."""
 
     end: int = 0
     schemas: list[bytes] = field(default_factory=list)
@@ -98,11 +101,12 @@ class _Scan:
         return self.end + len(self.tail)
 
 
-def _scan(data: memoryview) -> _Scan:
+def scan_records(data: memoryview) -> FileScan:
+    """Read every whole record of an MCAP file up to a cut, decompressing and indexing each whole chunk."""
     if bytes(data[: len(MAGIC)]) != MAGIC:
         msg = "not an MCAP file (no magic)"
         raise BagRecoveryError(msg)
-    scan = _Scan(end=len(MAGIC))
+    scan = FileScan(end=len(MAGIC))
     records = iter_records(data)
     first = next(records, None)
     if first is None or first.opcode != Opcode.HEADER:
@@ -126,18 +130,25 @@ def _scan(data: memoryview) -> _Scan:
         elif record.opcode == Opcode.CHUNK:
             try:
                 chunk = parse_chunk(content)
+            except LookupError as err:
+                raise BagRecoveryError(str(err)) from None
             except ValueError:
                 break  # torn chunk: the file ends before it
-            if chunk.compression:
-                msg = f"compressed chunks ({chunk.compression}) are not written by the recorder"
-                raise BagRecoveryError(msg)
-            entries: dict[int, list[tuple[int, int]]] = {}
+            entries = {}
             for channel_id, log_time, offset in iter_chunk_messages(chunk.records):
                 entries.setdefault(channel_id, []).append((log_time, offset))
             counts = {cid: len(e) for cid, e in entries.items()}
             scan.statistics.add_chunk(chunk.start_time, chunk.end_time, counts)
             index_owner = ChunkIndex(
-                chunk.start_time, chunk.end_time, record.offset, record.length, {}, 0, len(chunk.records)
+                chunk.start_time,
+                chunk.end_time,
+                record.offset,
+                record.length,
+                {},
+                0,
+                len(chunk.records),
+                chunk.compression,
+                chunk.stored_size,
             )
             scan.chunk_indexes.append(index_owner)
         elif record.opcode == Opcode.MESSAGE_INDEX:
@@ -160,7 +171,7 @@ def _scan(data: memoryview) -> _Scan:
     return scan
 
 
-def _rebuild_last_indexes(scan: _Scan, chunk: ChunkIndex, entries: dict[int, list[tuple[int, int]]]) -> None:
+def _rebuild_last_indexes(scan: FileScan, chunk: ChunkIndex, entries: dict[int, list[tuple[int, int]]]) -> None:
     """Drop the last chunk's partial message indexes and append whole ones (readers such as rosbags need them)."""
     scan.end = chunk.offset + chunk.length
     records, offsets, position = [], {}, scan.end
@@ -174,7 +185,7 @@ def _rebuild_last_indexes(scan: _Scan, chunk: ChunkIndex, entries: dict[int, lis
     scan.chunk_indexes[-1] = replace(chunk, message_index_offsets=offsets, message_index_length=len(scan.tail))
 
 
-def _topics(scan: _Scan) -> list[BagTopic]:
+def _topics(scan: FileScan) -> list[BagTopic]:
     topics = []
     for channel_id in sorted(scan.channel_info):
         schema_id, topic, metadata = scan.channel_info[channel_id]
@@ -200,53 +211,75 @@ def _custom_data(bag: Path) -> dict[str, str] | None:
         return None
 
 
-def recover_bag(bag: Path | str) -> RecoveryResult:
-    """Make a killed recorder's bag complete and readable by every reader; returns what it kept."""
-    bag = Path(bag)
-    mcap_path = mcap_file_of(bag)
-    if not mcap_path.is_file():
-        msg = f"{bag}: no MCAP file {mcap_path.name}"
+def _scan_file(path: Path) -> FileScan:
+    """The whole records of one MCAP file (BagRecoveryError if it is empty or not MCAP)."""
+    if path.stat().st_size == 0:
+        msg = f"{path}: empty file"
         raise BagRecoveryError(msg)
-    complete = is_complete(mcap_path)
-    size = mcap_path.stat().st_size
-    with mcap_path.open("r+b") as stream:
-        if size == 0:
-            msg = f"{mcap_path}: empty file"
-            raise BagRecoveryError(msg)
-        with mmap.mmap(stream.fileno(), 0, access=mmap.ACCESS_READ) as mapped:
-            view = memoryview(mapped)
-            try:
-                scan = _scan(view)
-            finally:
-                view.release()
-        topics = _topics(scan)
-        names = {t.channel_id: t.name for t in topics}
-        counts = {names[cid]: n for cid, n in sorted(scan.statistics.channel_message_counts.items()) if cid in names}
-        if complete:
-            return RecoveryResult(bag, False, scan.statistics.message_count, scan.statistics.chunk_count, 0, counts)
-        stats = scan.statistics
-        start, end = (stats.start_time, stats.end_time) if stats.message_count else (0, 0)
-        information = bag_metadata(
-            mcap_path.name, topics, stats.channel_message_counts, start, end, custom_data=_custom_data(bag)
-        )
+    with path.open("rb") as stream, mmap.mmap(stream.fileno(), 0, access=mmap.ACCESS_READ) as mapped:
+        view = memoryview(mapped)
+        try:
+            return scan_records(view)
+        finally:
+            view.release()
+
+
+def _complete_file(path: Path, scan: FileScan, information: dict[str, object]) -> None:
+    """Cut ``path`` after its last whole record and append what closing it would have written."""
+    stats = scan.statistics
+    rosbag2 = metadata_record("rosbag2", {"serialized_metadata": dump_metadata(information, top_level=False)})
+    scan.metadata_indexes.append(metadata_index_record(scan.append_at, len(rosbag2), "rosbag2"))
+    stats.metadata_count += 1
+    data_end = data_end_record()
+    summary = summary_and_footer(
+        scan.append_at + len(rosbag2) + len(data_end),
+        schemas=scan.schemas,
+        channels=[scan.channels[cid] for cid in sorted(scan.channels)],
+        statistics=stats,
+        chunk_indexes=scan.chunk_indexes,
+        metadata_indexes=scan.metadata_indexes,
+    )
+    with path.open("r+b") as stream:
         stream.truncate(scan.end)
         stream.seek(scan.end)
-        rosbag2 = metadata_record("rosbag2", {"serialized_metadata": dump_metadata(information, top_level=False)})
-        scan.metadata_indexes.append(metadata_index_record(scan.append_at, len(rosbag2), "rosbag2"))
-        stats.metadata_count += 1
-        data_end = data_end_record()
-        summary_start = scan.append_at + len(rosbag2) + len(data_end)
-        channels = [scan.channels[cid] for cid in sorted(scan.channels)]
-        summary = summary_and_footer(
-            summary_start,
-            schemas=scan.schemas,
-            channels=channels,
-            statistics=stats,
-            chunk_indexes=scan.chunk_indexes,
-            metadata_indexes=scan.metadata_indexes,
-        )
         stream.write(scan.tail + rosbag2 + data_end + summary)
         stream.flush()
         os.fsync(stream.fileno())
-    write_metadata_file(bag, information)
-    return RecoveryResult(bag, True, stats.message_count, stats.chunk_count, size - scan.end, counts)
+
+
+def recover_bag(bag: Path | str) -> RecoveryResult:
+    """Make a killed recorder's bag (every split file of it) complete and readable by every reader; returns what
+    it kept. Files that are complete already stay untouched; metadata.yaml is rewritten if any was not."""
+    bag = Path(bag)
+    paths = bag_files(bag)
+    if not paths:
+        msg = f"{bag}: no MCAP file {mcap_file_of(bag).name}"
+        raise BagRecoveryError(msg)
+    scans = [(path, is_complete(path), path.stat().st_size, _scan_file(path)) for path in paths]
+    topics = _topics(scans[0][3])  # every split file repeats the same schemas and channels
+    names = {t.channel_id: t.name for t in topics}
+    counts: dict[int, int] = {}
+    spans = []
+    for path, _, _, scan in scans:
+        stats = scan.statistics
+        for channel_id, n in stats.channel_message_counts.items():
+            counts[channel_id] = counts.get(channel_id, 0) + n
+        start, end = (stats.start_time, stats.end_time) if stats.message_count else (0, 0)
+        spans.append(FileSpan(path.name, start, end, stats.message_count))
+    with_messages = [span for span in spans if span.message_count]
+    start = min((span.start_ns for span in with_messages), default=0)
+    end = max((span.end_ns for span in with_messages), default=0)
+    information = bag_metadata(spans, topics, counts, start, end, custom_data=_custom_data(bag))
+    cut = [(path, size, scan) for path, complete, size, scan in scans if not complete]
+    for path, _, scan in cut:
+        _complete_file(path, scan, information)
+    if cut:
+        write_metadata_file(bag, information)
+    return RecoveryResult(
+        bag,
+        bool(cut),
+        sum(scan.statistics.message_count for *_, scan in scans),
+        sum(scan.statistics.chunk_count for *_, scan in scans),
+        sum(size - scan.end for _, size, scan in cut),
+        {names[cid]: n for cid, n in sorted(counts.items()) if cid in names},
+    )
