@@ -16,11 +16,20 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import os
+import time
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Final
 
-__all__ = ["SHM_DIR", "family", "in_use_shm_files", "remove_stale", "shm_files_of"]
+__all__ = [
+    "SHM_DIR",
+    "family",
+    "in_use_shm_files",
+    "owned_shm_files",
+    "remove_stale",
+    "shm_files_of",
+    "wait_until_released",
+]
 
 SHM_DIR: Final = Path("/dev/shm")
 _MARKERS: Final = ("fastrtps", "fast_datasharing")
@@ -45,6 +54,22 @@ def shm_files_of(pid: int) -> set[str]:
                 if target.startswith("/dev/shm/"):
                     names.add(target.rsplit("/", 1)[-1])
     return {name for name in names if _is_fastdds(name)}
+
+
+def owned_shm_files(pid: int) -> set[str]:
+    """The segments and ports process ``pid`` owns: those whose lock file ``<name>_el`` it holds."""
+    return {name.removesuffix("_el") for name in shm_files_of(pid) if name.endswith("_el")}
+
+
+def wait_until_released(pid: int, timeout_s: float) -> bool:
+    """Wait until process ``pid`` holds no Fast DDS file any more (its participants' transport threads
+    ended), at most ``timeout_s``; True if it did."""
+    deadline = time.monotonic() + timeout_s
+    while shm_files_of(pid):
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(0.05)
+    return True
 
 
 def in_use_shm_files(exclude: Iterable[int] = ()) -> set[str]:

@@ -16,7 +16,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from rh5_bringup.fastdds_shm import shm_files_of
+from rh5_bringup.fastdds_shm import wait_until_released
 from rh5_bringup.launcher import Bringup, NodeProcess, SuiteRun, wait_for_nodes
 
 
@@ -27,13 +27,6 @@ def run_dir(root: Path, prefix: str = "rh5") -> Path:
 
 OBSERVER_RELEASE_S = 5.0
 """How long closing waits for the observer's Fast DDS files to be released (its transport threads end)."""
-
-
-def _wait_until_released(timeout_s: float) -> None:
-    """Until this process holds no Fast DDS shared-memory file any more, or ``timeout_s`` passed."""
-    deadline = time.monotonic() + timeout_s
-    while shm_files_of(os.getpid()) and time.monotonic() < deadline:
-        time.sleep(0.05)
 
 
 def _to_stderr(text: str) -> None:
@@ -146,7 +139,7 @@ class SuiteSession:
                 rclpy.try_shutdown()
                 context.destroy()  # the observer's participant ends now, not whenever the context is collected
                 if self.run.killed():
-                    _wait_until_released(OBSERVER_RELEASE_S)
+                    wait_until_released(os.getpid(), OBSERVER_RELEASE_S)
                     self.run.remove_stale_shared_memory()  # again: the observer's own port, now that it ended
                 if self.run.removed_shm:
                     self.report(f"removed {len(self.run.removed_shm)} Fast DDS shared-memory files killed nodes left")
