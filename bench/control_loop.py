@@ -181,7 +181,7 @@ def report(statuses: list[dict[str, str]], args: argparse.Namespace) -> None:
         for stage in ("cpu", "read", "to_joints", "stabilize", "to_actuators", "write"):
             p50, p99 = (values(statuses, f"cycle.{stage}.{k}_us") for k in ("p50", "p99"))
             print(f"    {stage:<14} p50 {float(np.median(p50)):7.1f} us   p99 (worst) {float(p99.max()):7.1f} us")
-        dropped = values(statuses, "publish.dropped")
+        dropped = values(statuses, "streams.dropped")
         print(f"  {'publisher drops during the run':<40} {int(dropped[-1] - dropped[0]):10d}")
 
 

@@ -4,11 +4,12 @@ As ros2_control's controller manager does, the ``control`` node owns a single 1 
 (rh5_bringup.control_cycle: read telemetry -> map -> stabilise -> map with the limits -> write
 commands) under SCHED_FIFO, and hosts the ``driver``, ``mapper`` and ``stabilizer`` nodes with their
 own names, parameters, services and diagnostics. The four 1 kHz topics (``actuator_states``,
-``joint_states``, ``joint_commands``, ``actuator_commands``) keep their names, types and rates; a
-publisher thread sends them in the cycle's slack, dropping a sample rather than delaying the cycle.
-The publisher and executor threads run at SCHED_FIFO just below the cycle (see ``__init__``).
-``/diagnostics`` status ``rh5/control``: loop timing, the real-time grant, telemetry-to-command
-latency, cycle duration (wall and CPU, per step) and publisher drops.
+``joint_states``, ``joint_commands``, ``actuator_commands``) keep their names, types and rates: the cycle
+hands each cycle's data to a publishing child process (rh5_bringup.stream_publisher), so publishing
+never takes the interpreter lock from the cycle, and a sample is dropped rather than the cycle delayed.
+The executor thread and the thread that publishes a stabilizer state change run at SCHED_FIFO just below
+the cycle (see ``__init__``). ``/diagnostics`` status ``rh5/control``: loop timing, the real-time grant,
+telemetry-to-command latency, cycle duration (wall and CPU, per step) and the streams' counts.
 
     ros2 run rh5_bringup control_node --ros-args --params-file control.yaml   # (rh5 up starts it)
 """
@@ -19,6 +20,7 @@ from typing import Any, Final
 
 from rh5_bringup.control_cycle import ControlCycle, CycleSample
 from rh5_bringup.driver_node import DriverNode
+from rh5_bringup.stream_publisher import STREAMS, StreamPublisherProcess
 from rh5_hyrodyn_mapper.mapper_node import MapperNode
 from rh5_joint_stabilizer.stabilizer_node import StabilizerNode
 from rh5_msgs_py import interfaces
@@ -27,10 +29,8 @@ from rh5_msgs_py.node_runtime import SuiteNode, run_node
 from rh5_msgs_py.realtime import RealtimePublisher, request_realtime
 
 DIAGNOSTICS_PERIOD_S: Final = 1.0
-PUBLISH_SLACK_NS: Final = 150_000
-"""Time one message takes to build and publish, with margin: the publisher starts one only with this much slack."""
 HELPER_PRIORITY_BELOW: Final = 10
-"""The publisher and executor threads run this far below the cycle's SCHED_FIFO priority."""
+"""The status publisher and executor threads run this far below the cycle's SCHED_FIFO priority."""
 STATUS_SLACK_NS: Final = 300_000
 """The same for a node's /diagnostics status (up to a hundred key-values)."""
 
@@ -41,6 +41,10 @@ class ControlNode(SuiteNode):
     def __init__(self, driver: DriverNode, mapper: MapperNode, stabilizer: StabilizerNode) -> None:
         super().__init__(interfaces.CONTROL_NODE, "rh5_bringup", "params/control.yaml")
         self.driver, self.mapper, self.stabilizer = driver, mapper, stabilizer
+        self.streams = StreamPublisherProcess(self.get_namespace())
+        self._hosts = {
+            topic.name: host for topic, host in zip(STREAMS, (driver, mapper, stabilizer, mapper), strict=True)
+        }
         self.publisher: RealtimePublisher[CycleSample] = RealtimePublisher(self._publish, name="control-publisher")
         self.cycle = ControlCycle(
             driver.core,
@@ -48,14 +52,14 @@ class ControlNode(SuiteNode):
             stabilizer.step,
             estop_to_stabilizer=stabilizer.core.set_estop,
             state_changed=lambda: stabilizer.state_changed,
-            hand_off=self.publisher.try_publish,
+            hand_off=self._hand_off,
         )
         self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
         params = self.params
         for node in (self, driver, mapper, stabilizer):
             node.status_gate = self._wait_for_status_slack
-        # The publisher and the executor share the interpreter lock with the cycle. At normal priority the OS may
+        # The status publisher and the executor share the interpreter lock with the cycle. At normal priority the OS may
         # preempt them while they hold it (the simulation is busy on both cores), and the cycle then waits for
         # milliseconds: a priority inversion. They get SCHED_FIFO just below the cycle; they never spin, and
         # take from the other processes only the work they have (the publisher keeps to the cycle's slack).
@@ -64,33 +68,30 @@ class ControlNode(SuiteNode):
         )
         self.publisher.on_start = lambda: request_realtime(helper_priority)
         self.helper_realtime = request_realtime(helper_priority)  # this thread: the executor's
+        if not self.streams.wait_ready():
+            self.get_logger().error(
+                "the stream publisher process did not start: actuator_states, joint_states, joint_commands and "
+                f"actuator_commands are not published (exit {self.streams.process.poll()}; see this log above)"
+            )
         self.loop = self.start_loop(params["rate_hz"], self.cycle.step, "control-1kHz", params["realtime_priority"])
         self.publisher.start()  # after the loop exists: it waits for the loop's slack
 
     def _wait_for_status_slack(self) -> None:
         self.loop.wait_for_slack(STATUS_SLACK_NS)
 
-    def _publish(self, sample: CycleSample) -> None:
-        """The publisher thread: the cycle's four topics (serialised directly: ``encode_serialized``) and a
-        stabilizer state change, each message started only in the cycle's slack."""
-        stamp, slack = sample.stamp_ns, self.loop.wait_for_slack
-        driver, mapper, stabilizer = self.driver, self.mapper, self.stabilizer
-        if sample.actuator_states is not None:
-            slack(PUBLISH_SLACK_NS)
-            driver.publish_states(driver.state_codec.encode_serialized(*sample.actuator_states, stamp_ns=stamp))
-        if sample.joint_states is not None:
-            slack(PUBLISH_SLACK_NS)
-            mapper.publish_joint_states(mapper.joint_codec_out.encode_serialized(*sample.joint_states, stamp_ns=stamp))
-        if sample.joint_commands is not None:
-            slack(PUBLISH_SLACK_NS)
-            codec = stabilizer.command_codec
-            stabilizer.publish_commands(codec.encode_serialized(*sample.joint_commands, stamp_ns=stamp))
-        if sample.actuator_commands is not None:
-            slack(PUBLISH_SLACK_NS)
-            codec = mapper.actuator_codec_out
-            mapper.publish_actuator_commands(codec.encode_serialized(*sample.actuator_commands, stamp_ns=stamp))
+    def _hand_off(self, sample: CycleSample) -> None:
+        """The cycle's hand-over (never blocks): the streams to the publishing process, a stabilizer state change
+        to the status thread."""
+        self.streams.send(
+            sample.stamp_ns,
+            (sample.actuator_states, sample.joint_states, sample.joint_commands, sample.actuator_commands),
+        )
         if sample.stabilizer_state_changed:
-            stabilizer.publish_status()  # waits for the slack itself (status_gate)
+            self.publisher.try_publish(sample)
+
+    def _publish(self, _sample: CycleSample) -> None:
+        """The status thread: the stabilizer's new state (it waits for the cycle's slack itself: status_gate)."""
+        self.stabilizer.publish_status()
 
     def diagnostics(self) -> dict[str, object]:
         """The cycle's timing, real-time grant, latency and publisher counts (the ``rh5/control`` values)."""
@@ -107,7 +108,8 @@ class ControlNode(SuiteNode):
         values.update({f"cycle.cpu.{k}": round(v, 1) for k, v in cycle.cpu.percentiles_us().items()})
         for stage, window in cycle.stages.items():
             values.update({f"cycle.{stage}.{k}": round(v, 1) for k, v in window.percentiles_us().items()})
-        values.update(self.publisher.diagnostics())
+        values.update(self.streams.diagnostics())
+        values.update({f"status_{k}": v for k, v in self.publisher.diagnostics().items()})
         return values
 
     def _publish_status(self) -> None:
@@ -126,10 +128,17 @@ class ControlNode(SuiteNode):
         """Adds the loop timing, latency and publisher counts to the base summary."""
         return {**super().summary(), "control": self.diagnostics()}
 
-    def destroy_node(self) -> None:
-        """Stop the cycle, then the publisher thread."""
+    def finish(self) -> None:
+        """Stop the cycle, then the publishers; the streams' final counts go to their nodes' summaries."""
         self.loop.stop()
         self.publisher.stop()
+        if self.streams.process.returncode is None:  # once: the counts go to the summaries once
+            for name, count in self.streams.close().items():
+                self._hosts[name].sent[name] += count
+
+    def destroy_node(self) -> None:
+        """Stop everything (``finish``), then the node."""
+        self.finish()
         super().destroy_node()
 
 

@@ -75,7 +75,8 @@ class DriverNode(SuiteNode):
         )
         self._command_codec = JointStateCodec(ACTUATOR_NAMES, what="actuator_commands")
         self.state_codec = JointStateCodec(ACTUATOR_NAMES)
-        self.publish_states = self.advertise(interfaces.ACTUATOR_STATES)
+        if not composed:  # composed: the control process's stream publisher sends them
+            self.publish_states = self.advertise(interfaces.ACTUATOR_STATES)
         self._publish_estop = self.advertise(interfaces.DRIVER_ESTOP)
         self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
         self._publish_estop(Bool(data=False))

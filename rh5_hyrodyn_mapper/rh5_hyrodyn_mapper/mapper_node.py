@@ -46,8 +46,9 @@ class MapperNode(SuiteNode):
         self.joint_codec_out = JointStateCodec(JOINT_NAMES)
         if self.params["publish_robot_description"]:
             self.advertise(interfaces.ROBOT_DESCRIPTION)(String(data=generate_urdf()))
-        self.publish_actuator_commands = self.advertise(interfaces.ACTUATOR_COMMANDS)
-        self.publish_joint_states = self.advertise(interfaces.JOINT_STATES)
+        if not composed:  # composed: the control process's stream publisher sends them
+            self.publish_actuator_commands = self.advertise(interfaces.ACTUATOR_COMMANDS)
+            self.publish_joint_states = self.advertise(interfaces.JOINT_STATES)
         self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
         if not composed:
             self.subscribe_stream(interfaces.JOINT_COMMANDS, self._on_joint_commands)

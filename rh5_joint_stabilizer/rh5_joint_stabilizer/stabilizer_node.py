@@ -91,7 +91,8 @@ class StabilizerNode(SuiteNode):
         self.tracking = TrackingWindow()
         self._state_codec = JointStateCodec(JOINT_NAMES, what="joint_states")
         self.command_codec = JointStateCodec(JOINT_NAMES)
-        self.publish_commands = self.advertise(interfaces.JOINT_COMMANDS)
+        if not composed:  # composed: the control process's stream publisher sends them
+            self.publish_commands = self.advertise(interfaces.JOINT_COMMANDS)
         self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
         # raw: a long trajectory converted by rclpy holds the interpreter lock for tens of ms (a stall of the cycle)
         self.subscribe(interfaces.PLANNED_TRAJECTORY, self._on_trajectory, raw=True)

@@ -151,6 +151,10 @@ class SuiteNode(Node):
 
         return publish
 
+    def finish(self) -> None:
+        """Stop producing (loops, helper processes) before the summaries are taken, so that they are final;
+        idempotent. Nothing to stop by default."""
+
     def summary(self) -> dict[str, Any]:
         """What this node saw and sent, for the launcher's report."""
         return {"node": self.get_name(), "seen": dict(self.seen), "sent": dict(self.sent)}
@@ -208,6 +212,8 @@ def run_node(factory: Callable[[], SuiteNode | Sequence[SuiteNode]], args: list[
         print(f"ignored during shutdown: {err!r}", file=sys.stderr, flush=True)
         stopped = True
     finally:
+        for node in nodes:
+            node.finish()
         for node in reversed(nodes):
             print(SUMMARY_PREFIX + json.dumps(node.summary(), sort_keys=True), flush=True)
         for node in nodes:
