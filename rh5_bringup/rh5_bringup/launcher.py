@@ -23,6 +23,7 @@ from typing import Any
 import yaml
 
 from rh5_bringup.fastdds_shm import remove_stale, shm_files_of
+from rh5_msgs_py.interfaces import CONTROL_NODE, CONTROL_STREAMS_NODE
 from rh5_msgs_py.node_runtime import parse_summary
 from rh5_msgs_py.parameters import load_spec
 from rh5_msgs_py.ros_env import DomainLease, suite_environment
@@ -87,8 +88,10 @@ class Bringup:
         return out
 
     def node_names(self) -> set[str]:
-        """The nodes that appear in the ROS graph when this bringup runs."""
-        return {n.name for host, hosted in self.processes() for n in (host, *hosted)}
+        """The nodes that appear in the ROS graph when this bringup runs (with the control process's stream
+        publisher: until it is in the graph, an observer may not have its 1 kHz topics yet)."""
+        names = {n.name for host, hosted in self.processes() for n in (host, *hosted)}
+        return names | {CONTROL_STREAMS_NODE} if CONTROL_NODE in names else names
 
     def resolved(self, **values: str) -> Bringup:
         """A copy with every launch argument applied (``values`` override the defaults); unknown or bad values raise."""

@@ -67,7 +67,7 @@ Triple = tuple[np.ndarray, np.ndarray | None, np.ndarray | None]
 class StreamPublisherProcess:
     """The control process's side: starts the child, hands it each cycle's sample, reads back its counts."""
 
-    def __init__(self, namespace: str = "/", node_name: str = "control_streams") -> None:
+    def __init__(self, namespace: str = "/", node_name: str = interfaces.CONTROL_STREAMS_NODE) -> None:
         record_read, self._record_write = os.pipe()
         counts_read, counts_write = os.pipe()
         with contextlib.suppress(OSError):  # a smaller default pipe only drops samples sooner
@@ -233,7 +233,7 @@ def main(argv: list[str] | None = None) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the control process ends publishing by closing the pipe
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))  # leave through ``finally``: DDS removes its files
     rclpy.init(args=["stream_publisher", *args[len(ours) :]], signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node("control_streams", start_parameter_services=False)
+    node = rclpy.create_node(interfaces.CONTROL_STREAMS_NODE, start_parameter_services=False)
     try:
         _publish_forever(options.record_fd, options.counts_fd, node)
     finally:

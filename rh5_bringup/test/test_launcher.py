@@ -36,8 +36,8 @@ def test_packaged_bringup_starts_the_control_process_by_default() -> None:
     assert [host.name for host, hosted in separate.processes() if not hosted] == [
         "recorder", "sim_hardware", "driver", "mapper", "stabilizer", "planner"
     ]  # fmt: skip
-    assert bringup.node_names() == {n.name for n in bringup.nodes}
-    assert separate.node_names() == bringup.node_names() - {"control"}
+    assert bringup.node_names() == {n.name for n in bringup.nodes} | {"control_streams"}  # the stream publisher
+    assert separate.node_names() == bringup.node_names() - {"control", "control_streams"}
 
 
 def test_a_composed_process_gets_each_nodes_parameters_under_its_name(tmp_path: Path) -> None:

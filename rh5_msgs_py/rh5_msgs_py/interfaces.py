@@ -104,6 +104,8 @@ MAPPER_NODE: Final = "mapper"
 STABILIZER_NODE: Final = "stabilizer"
 DRIVER_NODE: Final = "driver"
 CONTROL_NODE: Final = "control"
+CONTROL_STREAMS_NODE: Final = "control_streams"
+"""The control process's child that publishes its 1 kHz topics (rh5_bringup.stream_publisher)."""
 SIM_HARDWARE_NODE: Final = "sim_hardware"
 RECORDER_NODE: Final = "recorder"
 
