@@ -3,7 +3,7 @@
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from setuptools import find_packages, setup
+from setuptools import Extension, find_packages, setup
 
 PACKAGE = "rh5_hyrodyn_mapper"
 HERE = Path(__file__).parent
@@ -26,6 +26,10 @@ setup(
         (f"share/{PACKAGE}", ["package.xml"]),
         *share_files("launch"),
         *share_files("config"),
+    ],
+    # The control cycle's two mapping steps in C (kinematics/_compiled.c); the Python float paths stay the reference.
+    ext_modules=[
+        Extension(f"{PACKAGE}.kinematics._compiled", [f"{PACKAGE}/kinematics/_compiled.c"], extra_compile_args=["-O2"])
     ],
     install_requires=["setuptools"],
     zip_safe=False,

@@ -19,6 +19,7 @@ import numpy as np
 
 from rh5_hyrodyn_mapper.kinematics import build_submechanisms
 from rh5_hyrodyn_mapper.kinematics.base import FloatArray, KinematicsError, SubmechanismModel
+from rh5_hyrodyn_mapper.kinematics.compiled import CompiledMaps
 from rh5_msgs_py.names import ACTUATOR_INDEX, ACTUATOR_NAMES, JOINT_INDEX, NUM_ACTUATORS, NUM_JOINTS
 
 DEFAULT_MAX_CONDITION: Final = 1e6
@@ -155,6 +156,11 @@ class RobotMapper:
                 actuator_sources[actuator], joint_sources[joint] = joint, actuator
         self._actuators_from_joints = _list_gather(actuator_sources)
         self._joints_from_actuators = _list_gather(joint_sources)
+        # The control cycle's calls in C (None without the built extension): the float path is the fallback.
+        self._compiled = CompiledMaps.build(
+            [(b.model, b.joints.start, b.actuators.start) for b in blocks],
+            list(zip(identity_joints, identity_actuators, strict=True)),
+        )
         limits = {name: np.zeros(NUM_ACTUATORS) for name in ("length_min", "length_max", "velocity_max", "force_max")}
         for model in self.submechanisms:
             idx = [ACTUATOR_INDEX[a] for a in model.actuators]
@@ -223,8 +229,13 @@ class RobotMapper:
     def _to_actuators_single(
         self, q: FloatArray, v: FloatArray | None, a: FloatArray | None, tau: FloatArray | None
     ) -> ActuatorSample:
-        """``to_actuators`` for one sample (every input of shape (32,)): Python lists, one array per output."""
+        """``to_actuators`` for one sample (every input of shape (32,)): in C for the cycle's call (q, v, tau),
+        else (or when a unit refuses: Python gives the reason) on Python lists, one array per output."""
         max_condition = self.max_condition
+        if self._compiled is not None and v is not None and tau is not None and a is None:
+            mapped = self._compiled.to_actuators(q, v, tau, max_condition)
+            if mapped is not None:
+                return ActuatorSample(mapped[0], mapped[1], None, mapped[2])
         qs = q.tolist()
         vs = None if v is None else v.tolist()
         acc = None if a is None else a.tolist()
@@ -314,7 +325,12 @@ class RobotMapper:
     def _to_joints_single(
         self, l: FloatArray, ld: FloatArray | None, f: FloatArray | None, q_guess: FloatArray | None
     ) -> JointSample:
-        """``to_joints`` for one sample (every input of shape (32,)): Python lists, one array per output."""
+        """``to_joints`` for one sample (every input of shape (32,)): in C for the cycle's call (l, l_dot, f and a
+        warm start), else (or when a unit refuses) on Python lists, one array per output."""
+        if self._compiled is not None and ld is not None and f is not None and q_guess is not None:
+            mapped = self._compiled.to_joints(l, ld, f, q_guess)
+            if mapped is not None:
+                return JointSample(mapped[0], mapped[1], None, mapped[2])
         ls = l.tolist()
         lds = None if ld is None else ld.tolist()
         fs = None if f is None else f.tolist()
