@@ -21,6 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from rh5_bringup.ndlcom._framing import newest_payloads
 from rh5_bringup.ndlcom.board_map import BoardMap
 from rh5_bringup.ndlcom.codec import FrameEncoder
 from rh5_bringup.ndlcom.command_frames import CommandFrames
@@ -97,7 +98,13 @@ class DriverCore:
         self._clip_high = np.minimum(
             np.array([limits.position_max, limits.velocity_max, limits.effort_max]), self._frames.high
         )
-        self._index_of = {board.address: board.index for board in board_map}
+        if len(board_map) >= 255:
+            msg = f"{len(board_map)} boards: the telemetry sorting (newest_payloads) takes at most 254"
+            raise ValueError(msg)
+        board_of = bytearray([255] * 256)  # sender address -> board index (255: not a board of the map)
+        for board in board_map:
+            board_of[board.address] = board.index
+        self._board_of = bytes(board_of)
         n = len(board_map)
         self.command: LatestValue[ActuatorCommand] = LatestValue()
         self.enabled = False
@@ -255,21 +262,19 @@ class DriverCore:
         frames = self.transport.recv(timeout=0.0)
         if not frames:
             return 0
-        index_of, counts, size = self._index_of, self.counts, TELEMETRY_LAYOUT.size
-        newest: dict[int, bytes] = {}
-        for frame in frames:
-            index = index_of.get(frame.sender)
-            payload = frame.payload
-            if index is None:
-                counts["unknown_sender_frames"] += 1
-            elif len(payload) == size and payload[0] == PayloadType.TELEMETRY and payload[1] == TELEMETRY_VERSION:
-                newest[index] = payload  # a later frame of the same board supersedes an earlier one
-            else:
-                counts["bad_payloads"] += 1  # the rest of decode_telemetry's checks follow, vectorised
-        if not newest:
+        counts = self.counts
+        # the latest frame of each board with TELEMETRY v1's size, type and version (C: the cycle's per-frame work)
+        order, payloads, unknown, bad = newest_payloads(
+            frames, self._board_of, TELEMETRY_LAYOUT.size, PayloadType.TELEMETRY, TELEMETRY_VERSION
+        )
+        if unknown:
+            counts["unknown_sender_frames"] += unknown
+        if bad:
+            counts["bad_payloads"] += bad  # the rest of decode_telemetry's checks follow, vectorised
+        if not order:
             return len(frames)
-        boards = np.fromiter(newest, dtype=np.intp, count=len(newest))
-        valid, telemetry = decode_telemetry_of(list(newest.values()), boards, self._table)
+        boards = np.frombuffer(order, dtype=np.uint8).astype(np.intp)
+        valid, telemetry = decode_telemetry_of(payloads, boards, self._table)
         if not valid.all():
             counts["bad_payloads"] += int((~valid).sum())
             boards, telemetry = boards[valid], TelemetryArrays(*(field[valid] for field in telemetry))

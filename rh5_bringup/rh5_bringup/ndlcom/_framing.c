@@ -179,9 +179,70 @@ fail:
     return NULL;
 }
 
+/* newest_payloads(frames, board_of, size, kind, version): the driver's sorting of one cycle's frames.
+ *   frames: Frame tuples (receiver, sender, counter, payload) in arrival order.
+ *   board_of: 256 bytes, the board index of each sender address (255: not a board of the map).
+ *   Keeps, per board, the payload of its latest frame that has ``size`` bytes starting with ``kind`` and
+ *   ``version`` (a later frame supersedes an earlier one).
+ *   Returns (boards, payloads, unknown, bad): the board indices (bytes, first-arrival order), their kept payloads
+ *   joined in that order, the frames from unknown senders and those with another size, kind or version. */
+static PyObject *newest_payloads(PyObject *module, PyObject *args) {
+    PyObject *frames;
+    Py_buffer board_of;
+    Py_ssize_t size;
+    int kind, version;
+    if (!PyArg_ParseTuple(args, "O!y*nii", &PyList_Type, &frames, &board_of, &size, &kind, &version)) return NULL;
+    if (board_of.len != 256 || size <= 0) {
+        PyBuffer_Release(&board_of);
+        PyErr_SetString(PyExc_ValueError, "board_of must be 256 bytes and size positive");
+        return NULL;
+    }
+    const unsigned char *boards_of = board_of.buf;
+    PyObject *latest[255] = {NULL}; /* borrowed from ``frames`` */
+    unsigned char order[255];
+    int n_boards = 0;
+    long unknown = 0, bad = 0;
+    Py_ssize_t n = PyList_GET_SIZE(frames);
+    for (Py_ssize_t i = 0; i < n; ++i) {
+        PyObject *frame = PyList_GET_ITEM(frames, i);
+        if (!PyTuple_Check(frame) || PyTuple_GET_SIZE(frame) != 4) {
+            PyBuffer_Release(&board_of);
+            PyErr_SetString(PyExc_TypeError, "frames: (receiver, sender, counter, payload) tuples expected");
+            return NULL;
+        }
+        long sender = PyLong_AsLong(PyTuple_GET_ITEM(frame, 1));
+        PyObject *payload = PyTuple_GET_ITEM(frame, 3);
+        if ((sender == -1 && PyErr_Occurred()) || !PyBytes_Check(payload)) {
+            PyBuffer_Release(&board_of);
+            if (!PyErr_Occurred()) PyErr_SetString(PyExc_TypeError, "frames: payloads must be bytes");
+            return NULL;
+        }
+        int board = (sender >= 0 && sender < 256) ? boards_of[sender] : 255;
+        if (board == 255) {
+            ++unknown;
+            continue;
+        }
+        const unsigned char *data = (const unsigned char *)PyBytes_AS_STRING(payload);
+        if (PyBytes_GET_SIZE(payload) != size || data[0] != kind || data[1] != version) {
+            ++bad;
+            continue;
+        }
+        if (latest[board] == NULL) order[n_boards++] = (unsigned char)board;
+        latest[board] = payload;
+    }
+    PyBuffer_Release(&board_of);
+    PyObject *joined = PyBytes_FromStringAndSize(NULL, size * n_boards);
+    if (joined == NULL) return NULL;
+    char *out = PyBytes_AS_STRING(joined);
+    for (int k = 0; k < n_boards; ++k) memcpy(out + k * size, PyBytes_AS_STRING(latest[order[k]]), (size_t)size);
+    return Py_BuildValue("(y#Nll)", (const char *)order, (Py_ssize_t)n_boards, joined, unknown, bad);
+}
+
 static PyMethodDef methods[] = {
     {"split_frames", split_frames, METH_VARARGS,
      "Decode every complete frame between flags; update the counters; return (frames, garbage, pending_offset)."},
+    {"newest_payloads", newest_payloads, METH_VARARGS,
+     "The latest payload of each board among frames: (boards, joined payloads, unknown senders, bad payloads)."},
     {NULL, NULL, 0, NULL},
 };
 

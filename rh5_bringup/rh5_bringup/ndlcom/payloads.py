@@ -504,15 +504,16 @@ def decode_telemetry_many(payloads: Sequence[bytes], table: ScalingTable) -> Tel
 
 
 def decode_telemetry_of(
-    payloads: Sequence[bytes], boards: np.ndarray, table: ScalingTable
+    payloads: Sequence[bytes] | bytes, boards: np.ndarray, table: ScalingTable
 ) -> tuple[np.ndarray, TelemetryArrays]:
-    """Decode TELEMETRY v1 payloads of the boards at ``boards`` (table indices, any subset) in one pass.
+    """Decode TELEMETRY v1 payloads (a list, or already joined) of the boards at ``boards`` (table indices, any
+    subset) in one pass.
 
     The payloads must have the size, type and version bytes of TELEMETRY v1 (checked per frame by the caller,
     cheaply); returns which of them also pass the mode and reserved-field checks of ``decode_telemetry`` (the
     rest are to be dropped) and the arrays of all of them, in SI units.
     """
-    rec = np.frombuffer(b"".join(payloads), dtype=TELEMETRY_DTYPE)
+    rec = np.frombuffer(payloads if isinstance(payloads, bytes) else b"".join(payloads), dtype=TELEMETRY_DTYPE)
     valid = (rec["mode"] <= _MAX_MODE) & (rec["reserved"] == 0) & (rec["reserved2"] == 0)
     lsb = table.lsb[:, boards]
     return valid, TelemetryArrays(
