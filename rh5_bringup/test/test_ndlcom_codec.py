@@ -24,7 +24,6 @@ from rh5_bringup.ndlcom.codec import (
     encode_frame,
     fcs16,
     fcs16_reference,
-    fcs_tables,
 )
 
 VECTOR_FRAME = bytes.fromhex("7e 01 02 03 04 7d 5e 7d 5d 00 ff 3d 6f 7e")
@@ -294,17 +293,6 @@ def test_fuzz_decoder_never_raises_and_recovers_the_next_good_frame() -> None:
     assert total.oversize >= long_runs > 0
     assert min(kinds) == FUZZ_STREAMS // 8
     assert stats.garbage_bytes > 0
-
-
-@settings(max_examples=200, deadline=None)
-@given(st.binary(min_size=1, max_size=60))
-def test_table_fcs_of_fixed_length_messages_is_the_fcs(data: bytes) -> None:
-    """fcs_tables: the FCS as init part XOR one table entry per byte (what the driver's frame writer uses)."""
-    tables, init = fcs_tables(len(data))
-    by_table = init
-    for position, value in enumerate(data):
-        by_table ^= int(tables[position, value])
-    assert by_table == fcs16(data) == fcs16_reference(data)
 
 
 # --------------------------------------------------------------------------------------------------- C vs the spec

@@ -238,9 +238,68 @@ static PyObject *newest_payloads(PyObject *module, PyObject *args) {
     return Py_BuildValue("(y#Nll)", (const char *)order, (Py_ssize_t)n_boards, joined, unknown, bad);
 }
 
+/* encode_frames(receivers, sender, counters, payloads, size): one frame per receiver, as FrameEncoder.encode.
+ *   receivers: bytes, one address per frame; payloads: n x ``size`` bytes, frame k's payload at k * size.
+ *   counters: the encoder's 256 next-counter bytes (FrameCounter._next), advanced per receiver in place.
+ *   Returns the frames (flag, escaped header + payload + FCS little-endian, flag) as a list of bytes. */
+static PyObject *encode_frames(PyObject *module, PyObject *args) {
+    Py_buffer receivers, counters, payloads;
+    int sender;
+    Py_ssize_t size;
+    (void)module;
+    if (!PyArg_ParseTuple(args, "y*iw*y*n", &receivers, &sender, &counters, &payloads, &size)) return NULL;
+    PyObject *frames = NULL;
+    if (counters.len != 256 || size < 0 || size > 255 || sender < 0 || sender > 255 ||
+        payloads.len != receivers.len * size) {
+        PyErr_SetString(PyExc_ValueError, "encode_frames: 256 counters, sender and size in 0..255, n x size payloads");
+        goto done;
+    }
+    frames = PyList_New(receivers.len);
+    if (frames == NULL) goto done;
+    uint8_t *next = counters.buf;
+    const uint8_t *to = receivers.buf, *data = payloads.buf;
+    uint8_t raw[HEADER_SIZE + 255 + 2], wire[2 + 2 * (HEADER_SIZE + 255 + 2)];
+    for (Py_ssize_t k = 0; k < receivers.len; ++k) {
+        raw[0] = to[k];
+        raw[1] = (uint8_t)sender;
+        raw[2] = next[to[k]]++;
+        raw[3] = (uint8_t)size;
+        memcpy(raw + HEADER_SIZE, data + k * size, (size_t)size);
+        Py_ssize_t body = HEADER_SIZE + size;
+        uint16_t fcs = 0xFFFF;
+        for (Py_ssize_t i = 0; i < body; ++i) fcs = (uint16_t)((fcs >> 8) ^ fcs_table[(fcs ^ raw[i]) & 0xFF]);
+        raw[body] = (uint8_t)(fcs & 0xFF);
+        raw[body + 1] = (uint8_t)(fcs >> 8);
+        Py_ssize_t n = 0;
+        wire[n++] = FLAG;
+        for (Py_ssize_t i = 0; i < body + 2; ++i) {
+            if (raw[i] == FLAG || raw[i] == ESCAPE) {
+                wire[n++] = ESCAPE;
+                wire[n++] = raw[i] ^ ESCAPE_XOR;
+            } else {
+                wire[n++] = raw[i];
+            }
+        }
+        wire[n++] = FLAG;
+        PyObject *frame = PyBytes_FromStringAndSize((const char *)wire, n);
+        if (frame == NULL) {
+            Py_CLEAR(frames);
+            goto done;
+        }
+        PyList_SET_ITEM(frames, k, frame);
+    }
+done:
+    PyBuffer_Release(&receivers);
+    PyBuffer_Release(&counters);
+    PyBuffer_Release(&payloads);
+    return frames;
+}
+
 static PyMethodDef methods[] = {
     {"split_frames", split_frames, METH_VARARGS,
      "Decode every complete frame between flags; update the counters; return (frames, garbage, pending_offset)."},
+    {"encode_frames", encode_frames, METH_VARARGS,
+     "One frame per receiver from n x size payloads, advancing the counters: the frames as a list of bytes."},
     {"newest_payloads", newest_payloads, METH_VARARGS,
      "The latest payload of each board among frames: (boards, joined payloads, unknown senders, bad payloads)."},
     {NULL, NULL, 0, NULL},

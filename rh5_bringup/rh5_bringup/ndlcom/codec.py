@@ -14,11 +14,8 @@ loop (split, unescape, FCS, checks, counters) is C, ``_framing.c``, built with t
 from __future__ import annotations
 
 import binascii
-import functools
 import struct
 from typing import Final, NamedTuple
-
-import numpy as np
 
 from rh5_bringup.ndlcom._framing import split_frames
 
@@ -186,30 +183,6 @@ def escape_body(raw: bytes) -> bytes:
     if _ESC_BYTES in raw or _FLAG_BYTES in raw:
         raw = raw.replace(_ESC_BYTES, _ESCAPED_ESC).replace(_FLAG_BYTES, _ESCAPED_FLAG)
     return _FLAG_BYTES + raw + _FLAG_BYTES
-
-
-@functools.cache
-def fcs_tables(size: int) -> tuple[np.ndarray, int]:
-    """Per byte position of a ``size``-byte message: the FCS contribution of each byte value (size, 256), and
-    the FCS of ``size`` zero bytes from the initial value. The FCS from a zero start is linear over GF(2),
-    so fcs(m) = init_part XOR (XOR over positions i of table[i, m_i])."""
-    tables = np.zeros((size, 256), dtype=np.uint16)
-    for i in range(size):
-        for value in range(256):
-            message = bytearray(size)
-            message[i] = value
-            tables[i, value] = _fcs_from(bytes(message), 0)
-    return tables, _fcs_from(bytes(size), FCS_INIT)
-
-
-def _fcs_from(data: bytes, start: int) -> int:
-    """The FCS-16 of ``data`` from ``start`` (crc_hqx on bit-reversed bytes; see ``fcs16``)."""
-    crc = binascii.crc_hqx(data.translate(_REVERSE_BITS), _reverse16(start))
-    return _reverse16(crc)
-
-
-def _reverse16(value: int) -> int:
-    return _REVERSE_BITS[value >> 8] | _REVERSE_BITS[value & 0xFF] << 8
 
 
 # --------------------------------------------------------------------------------------------------- statistics
