@@ -266,7 +266,7 @@ def test_rh5_up_no_record_runs_the_suite_without_the_recorder(tmp_path: Path) ->
     command += ["--bringup", str(_bringup_file(tmp_path, bag)), "--log-dir", str(tmp_path / "log")]
     done = subprocess.run(command, capture_output=True, text=True, timeout=120, check=False)
     assert done.returncode == 0, done.stderr
-    assert "6 nodes running: control, driver, mapper, planner, sim_hardware, stabilizer" in done.stdout
+    assert "7 nodes running: control, control_streams, driver, mapper, planner, sim_hardware, stabilizer" in done.stdout
     assert "recorder" not in done.stdout
     assert not bag.exists()
 
