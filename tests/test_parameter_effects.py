@@ -12,7 +12,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pytest
 import yaml
 
@@ -35,28 +34,7 @@ def _gains_file(tmp: Path) -> str:
     return str(path)
 
 
-def _trajectory_file(tmp: Path) -> str:
-    from rh5_hyrodyn_mapper.model import model_hash
-    from rh5_msgs_py.names import NUM_JOINTS
-    from rh5_msgs_py.trajectory_file import NQ, NV, TrajectoryData, save_trajectory
-
-    t = np.arange(0.0, 1.0, 0.03)
-    states = np.zeros((len(t), NQ + NV))
-    states[:, 6] = 1.0  # base quaternion (x, y, z, w) = identity
-    data = TrajectoryData(
-        times=t,
-        states=states,
-        controls=np.zeros((len(t) - 1, NUM_JOINTS)),
-        contact_wrenches=np.zeros((len(t), 2, 6)),
-        contact_phases=np.ones((len(t), 2), dtype=bool),
-        cop=np.zeros((len(t), 2, 2)),
-        motion={"name": "test_hold"},
-        model_hash=model_hash(),
-    )
-    return str(save_trajectory(tmp / "hold.rh5traj", data))
-
-
-def effects(tmp: Path) -> dict[str, tuple[Callable[[], Any], dict[str, Effect]]]:
+def effects(tmp: Path, write_trajectory: Callable[..., Path]) -> dict[str, tuple[Callable[[], Any], dict[str, Effect]]]:
     """Per node: how to build it, and per writable parameter a value and the check of its effect."""
     from rh5_bringup.driver_node import DriverNode
     from rh5_bringup.sim_hardware_node import SimHardwareNode
@@ -64,7 +42,7 @@ def effects(tmp: Path) -> dict[str, tuple[Callable[[], Any], dict[str, Effect]]]
     from rh5_joint_stabilizer.stabilizer_node import StabilizerNode
     from rh5_planner.planner_node import PlannerNode
 
-    trajectory = _trajectory_file(tmp)
+    trajectory = str(write_trajectory(tmp / "test_hold.rh5traj", 1.0))
 
     def job(node: Any) -> Any:
         return node._job()
@@ -133,8 +111,10 @@ def effects(tmp: Path) -> dict[str, tuple[Callable[[], Any], dict[str, Effect]]]
 
 
 @pytest.fixture(scope="module")
-def table(tmp_path_factory: pytest.TempPathFactory, ros_graph: Any) -> dict[str, Any]:
-    return effects(tmp_path_factory.mktemp("effects"))
+def table(
+    tmp_path_factory: pytest.TempPathFactory, ros_graph: Any, write_joint_trajectory: Callable[..., Path]
+) -> dict[str, Any]:
+    return effects(tmp_path_factory.mktemp("effects"), write_joint_trajectory)
 
 
 def test_the_table_covers_every_writable_parameter(table: dict[str, Any]) -> None:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -141,33 +141,12 @@ def test_estop_latch_refuses_start(harness: Harness) -> None:
     harness.spin_for(0.3)
 
 
-def _file_trajectory(path: Path) -> Path:
-    """A slow 2 s joint sine in the trajectory file format (base standing still, no contacts needed)."""
-    from rh5_hyrodyn_mapper.model import model_hash
-    from rh5_msgs_py.trajectory_file import NQ, NV, TrajectoryData, save_trajectory
-
-    t = np.arange(0.0, 2.0, 0.03)
-    states = np.zeros((len(t), NQ + NV))
-    states[:, 6] = 1.0  # base quaternion (x, y, z, w) = identity
-    states[:, 7 : 7 + NUM_JOINTS] = 0.05 * np.sin(np.pi * t)[:, None]
-    states[:, NQ + 6 :] = 0.05 * np.pi * np.cos(np.pi * t)[:, None]
-    data = TrajectoryData(
-        times=t,
-        states=states,
-        controls=np.zeros((len(t) - 1, NUM_JOINTS)),
-        contact_wrenches=np.zeros((len(t), 2, 6)),
-        contact_phases=np.ones((len(t), 2), dtype=bool),
-        cop=np.zeros((len(t), 2, 2)),
-        motion={"name": "test_sine"},
-        model_hash=model_hash(),
-    )
-    return save_trajectory(path, data)
-
-
-def test_trajectory_file_parameter_loads_and_plays(harness: Harness, ros_test_environment: dict[str, str]) -> None:
+def test_trajectory_file_parameter_loads_and_plays(
+    harness: Harness, ros_test_environment: dict[str, str], write_joint_trajectory: Callable[..., Path]
+) -> None:
     """A second stabilizer started with trajectory_file plays it (no planned_trajectory needed)."""
     log_dir = Path(ros_test_environment["ROS_LOG_DIR"]) / "stabilizer_file"
-    path = _file_trajectory(log_dir.parent / "test_sine.rh5traj")
+    path = write_joint_trajectory(log_dir.parent / "test_sine.rh5traj", 2.0, amplitude=0.05)
     spec = NodeSpec(
         "stabilizer_file",
         "rh5_joint_stabilizer",

@@ -64,6 +64,13 @@ EXIT_GRACE_S: Final = 3.0
 Triple = tuple[np.ndarray, np.ndarray | None, np.ndarray | None]
 
 
+def _record() -> tuple[np.ndarray, np.ndarray, memoryview]:
+    """One record's buffer: its int64 header view, its (stream, field, value) view and its bytes."""
+    record = np.zeros(_HEADER + len(STREAMS) * 3 * _WIDTH)
+    values = record[_HEADER:].reshape(len(STREAMS), 3, _WIDTH)
+    return record[:_HEADER].view(np.int64), values, memoryview(record).cast("B")
+
+
 class StreamPublisherProcess:
     """The control process's side: starts the child, hands it each cycle's sample, reads back its counts."""
 
@@ -75,10 +82,7 @@ class StreamPublisherProcess:
         os.set_blocking(self._record_write, False)
         os.set_blocking(counts_read, False)
         self._counts_read = counts_read
-        self._record = np.zeros(_HEADER + len(STREAMS) * 3 * _WIDTH)
-        self._header = self._record[:_HEADER].view(np.int64)
-        self._values = self._record[_HEADER:].reshape(len(STREAMS), 3, _WIDTH)
-        self._bytes = memoryview(self._record).cast("B")
+        self._header, self._values, self._bytes = _record()
         self.sequence = 0
         self.dropped = 0
         """Samples not handed over because the child was behind by a full pipe (or gone)."""
@@ -186,10 +190,7 @@ def _publish_forever(record_fd: int, counts_fd: int, node: Any) -> dict[str, int
     codecs = [JointStateCodec(names) for names in _NAMES]
     counts = {topic.name: 0 for topic in STREAMS}
     names = [topic.name for topic in STREAMS]
-    record = np.zeros(_HEADER + len(STREAMS) * 3 * _WIDTH)
-    header = record[:_HEADER].view(np.int64)
-    values = record[_HEADER:].reshape(len(STREAMS), 3, _WIDTH)
-    buffer = memoryview(record).cast("B")
+    header, values, buffer = _record()
     reported_at = time.monotonic()
 
     def report() -> None:
