@@ -14,6 +14,7 @@ import contextlib
 import csv
 import json
 import os
+import secrets
 import shutil
 import signal
 import socket
@@ -31,9 +32,13 @@ AXES = ["payload_kg_per_hand=0:10:3", "knee:velocity=1,2"]
 COMPARED = ("status", "converged", "feasible", "limiting", "iterations", "warm_from", "limiting_use", "peak.velocity")
 
 
+TOKEN = secrets.token_hex(32)
+
+
 def _environment() -> dict[str, str]:
+    """The tests' Ray processes: no usage reports off the machine, token authentication with a token of their own."""
     env = dict(os.environ)
-    env["RAY_USAGE_STATS_ENABLED"] = "0"  # never report usage off the machine
+    env.update(RAY_USAGE_STATS_ENABLED="0", RAY_AUTH_MODE="token", RAY_AUTH_TOKEN=TOKEN)
     return env
 
 
@@ -101,7 +106,7 @@ def ray_cluster() -> Iterator[str]:
     port = _free_port()
     common = ["--block", "--num-cpus=1", "--node-ip-address=127.0.0.1", "--object-store-memory=100000000"]
     head_command = [ray, "start", "--head", f"--port={port}", "--include-dashboard=false", f"--temp-dir={temp_dir}"]
-    head_command += [f"--ray-client-server-port={_free_port()}", *common]
+    head_command += common
     processes: list[subprocess.Popen[str]] = []
     try:
         processes.append(

@@ -33,6 +33,10 @@ _MARK: Final = {
     "task_missed": "low",
     "failed": "err",
 }
+_KEY: Final = (
+    "\u2713 feasible   \u2717 over a required limit   nc not converged   low: jump below 90 % of its height   "
+    "err: failed"
+)
 _UNITS: Final = (
     ("_kg_per_hand", "kg per hand", 1.0),
     ("_m_s", "m/s", 1.0),
@@ -82,7 +86,7 @@ def axis_label(key: str) -> str:
         if base is None:
             return f"{pattern} {kind} limit [x joint limit]"
         label, value, unit = base
-        return f"{label} [{unit}] (x1 = Table I, {value:g} {unit})"
+        return f"{label} [{unit}]\n(x1 = Table I, {value:g} {unit})"
     if key == SPEED_KEY:
         return "average speed [m/s]"
     for suffix, unit, _ in _UNITS:
@@ -194,12 +198,7 @@ def feasibility_map(grid: Grid, rows: Sequence[Mapping[str, Any]], path: str | P
     if image is not None:
         bar = fig.colorbar(image, ax=axes, shrink=0.9)
         bar.set_label("highest use of a required limit (1 = at the limit)")
-    fig.text(
-        0.01,
-        0.005,
-        "\u2713 feasible   \u2717 over a limit   nc not converged   low jump below 90 % of its height   err failed",
-        fontsize=7,
-    )
+    fig.supxlabel(_KEY, fontsize=8)
     return _save(fig, path)
 
 
@@ -226,7 +225,9 @@ def limiting_map(grid: Grid, rows: Sequence[Mapping[str, Any]], path: str | Path
             ax.text(ix, iy, _MARK.get(str(status[iy][ix]), ""), ha="center", va="center", fontsize=9)
         _decorate(ax, grid, fixed)
     handles = [Patch(facecolor=colours[i], label=label) for label, i in index.items()]
-    fig.legend(handles=handles, loc="outside right upper", title="limiting factor", fontsize=8)
+    fig.legend(
+        handles=handles, loc="outside lower center", ncols=min(4, len(handles)), title="limiting factor", fontsize=8
+    )
     return _save(fig, path)
 
 
@@ -284,9 +285,10 @@ def minimal_spec(grid: Grid, rows: Sequence[Mapping[str, Any]], spec_key: str, p
         ax.bar([0], [np.nan if minimum is None else minimum * scale])
         ax.set_xticks([])
     ax.axhline(top, color="k", lw=0.6, ls=":")
-    ax.annotate(
-        "\u25b2 none of the swept values", (0.99, 0.99), xycoords="axes fraction", ha="right", va="top", fontsize=8
-    )
+    if any(minimum is None for _, minimum in table):
+        ax.annotate(
+            "\u25b2 none of the swept values", (0.99, 0.99), xycoords="axes fraction", ha="right", va="top", fontsize=8
+        )
     ylabel = f"minimal {base[0]} [{base[2]}]" if base else f"minimal {spec_key} factor"
     ax.set_ylabel(ylabel)
     ax.set_ylim(0, top * 1.08)

@@ -6,6 +6,10 @@ short folder of its own under /tmp, and shuts it down at the end. With ``address
 ``127.0.0.1:6379`` or ``auto``) it connects to a running cluster and leaves it running; every node must have this
 package installed (the same venv), since tasks import it to rebuild their problem.
 
+Ray authenticates with a token (``RAY_AUTH_TOKEN``, ``RAY_AUTH_TOKEN_PATH`` or ~/.ray/auth_token, which a local
+instance creates); towards an existing cluster the token is sent whenever one is found, unless ``RAY_AUTH_MODE`` says
+otherwise.
+
 A task is :func:`rh5_planner.sweep.point.solve_point` on a :class:`~rh5_planner.sweep.point.PointTask` (plain data)
 and returns the point's row and solution. Ray retries a task whose worker or node died (``max_retries``); the
 row's ``attempt`` says which attempt delivered it. Tasks report their start (host, pid) to a small actor, which
@@ -20,6 +24,7 @@ import platform
 import shutil
 import tempfile
 import time
+from pathlib import Path
 from typing import Any, Final
 
 import ray
@@ -62,6 +67,16 @@ def _solve(task: PointTask, warm: WarmStart | None, monitor: Any) -> PointOutcom
     return outcome
 
 
+def _use_token_if_available() -> None:
+    """Authenticate to an existing cluster with the token ``ray start`` uses, as ``ray.init(address="auto")`` does:
+    Ray sends it only in token mode, which an explicit address does not switch on by itself."""
+    if "RAY_AUTH_MODE" in os.environ:
+        return
+    path = os.environ.get("RAY_AUTH_TOKEN_PATH") or str(Path.home() / ".ray" / "auth_token")
+    if os.environ.get("RAY_AUTH_TOKEN") or Path(path).is_file():
+        os.environ["RAY_AUTH_MODE"] = "token"
+
+
 class RayExecutor:
     """Points as Ray tasks (see the module docstring)."""
 
@@ -79,7 +94,15 @@ class RayExecutor:
         self._temp_dir: str | None = None
         os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")  # no usage reports off the machine unless asked for
         if address:
-            ray.init(address=address, log_to_driver=False, logging_level=logging.WARNING)
+            _use_token_if_available()
+            loopback = address.rsplit(":", 1)[0] in ("127.0.0.1", "localhost")
+            ray.init(
+                address=address,
+                log_to_driver=False,
+                logging_level=logging.WARNING,
+                # a cluster on loopback: this driver's node is the 127.0.0.1 one, not the machine's network address
+                _node_ip_address="127.0.0.1" if loopback else None,
+            )
         else:
             # unix socket paths live in the temp dir and must stay under 107 characters: keep it short
             self._temp_dir = tempfile.mkdtemp(prefix=f"rh5ray_{os.getpid()}_", dir="/tmp")
