@@ -82,17 +82,21 @@ def main() -> None:
     it_cold = sum(int(cold_rows[p]["iterations"]) for p in warmed)
     all_warm = sum(int(r["iterations"]) for r in serial.values())
     all_cold = sum(int(r["iterations"]) for r in cold_rows.values())
-    s_warm = sum(float(serial[p]["solve_s"]) for p in warmed)
+    s_warm = sum(float(ray_rows[p]["solve_s"]) for p in warmed)
     s_cold = sum(float(cold_rows[p]["solve_s"]) for p in warmed)
     status_changed = [p for p in warmed if serial[p]["status"] != cold_rows[p]["status"]]
     print()
+    for label, rows in (("sequential", serial), ("Ray", ray_rows), ("Ray, cold", cold_rows)):
+        solve = sum(float(r["solve_s"]) for r in rows.values()) / len(rows)
+        cpu = sum(float(r["cpu_s"]) for r in rows.values()) / len(rows)
+        print(f"{label}: per point {solve:.2f} s wall, {cpu:.2f} s CPU of its process")
     print(
         f"speed-up, Ray {args.workers} workers over one sequential process: {serial_wall / ray_wall:.2f}x "
         f"({serial_wall / ray_sweep:.2f}x without the instance's start-up); results identical: {same}"
     )
     print(
         f"warm starts: {len(warmed)} of {len(serial)} points warm-started; their iterations warm/cold "
-        f"{it_warm}/{it_cold} = {it_warm / max(1, it_cold):.2f} (solve time {s_warm:.1f}/{s_cold:.1f} s = "
+        f"{it_warm}/{it_cold} = {it_warm / max(1, it_cold):.2f} (solve time on Ray {s_warm:.1f}/{s_cold:.1f} s = "
         f"{s_warm / max(1e-9, s_cold):.2f}); whole sweep {all_warm}/{all_cold} = {all_warm / max(1, all_cold):.2f}"
     )
     print(f"verdicts that differ between warm and cold starts: {status_changed or 'none'}")

@@ -143,7 +143,7 @@ def _figure(grid: Grid, title: str):  # type: ignore[no-untyped-def]
     nrows = math.ceil(n / cols)
     nx = len(grid.axes[0].values)
     ny = len(grid.axes[1].values) if len(grid.axes) > 1 else 1
-    width = min(16.0, max(6.0, 0.9 * nx * cols + 2.5))
+    width = min(16.0, max(7.5, 0.9 * nx * cols + 2.5))
     height = min(12.0, max(3.0, 0.7 * ny * nrows + 2.2))
     fig, axes = plt.subplots(nrows, cols, figsize=(width, height), squeeze=False, constrained_layout=True)
     for extra in axes.flat[n:]:
@@ -213,7 +213,7 @@ def limiting_map(grid: Grid, rows: Sequence[Mapping[str, Any]], path: str | Path
     index = {label: i for i, label in enumerate(labels)}
     colours = plt.get_cmap("tab10" if len(labels) <= 10 else "tab20").colors[: len(labels)]
     cmap = ListedColormap(colours)
-    fig, axes, panels = _figure(grid, _title(grid, "limiting factor (required limit used most)"))
+    fig, axes, panels = _figure(grid, _title(grid, "limiting factor, the required limit used most"))
     for ax, fixed in zip(axes, panels, strict=True):
         names = _matrix(grid, by_values, "limiting", fixed)
         status = _matrix(grid, by_values, "status", fixed)
@@ -275,7 +275,7 @@ def minimal_spec(grid: Grid, rows: Sequence[Mapping[str, Any]], spec_key: str, p
             xs = np.array([x * along_scale for x, _ in line])
             ys = np.array([np.nan if m is None else m * scale for _, m in line])
             label = ", ".join(f"{axis_label(k)} = {v:g}" for k, v in rest) or "feasible from"
-            ax.step(xs, ys, where="mid", marker="o", label=label)
+            ax.plot(xs, ys, marker="o", label=label)
             none = np.isnan(ys)
             if none.any():
                 ax.scatter(xs[none], np.full(none.sum(), top), marker="^", color="k", zorder=3)

@@ -12,8 +12,8 @@ otherwise.
 
 A task is :func:`rh5_planner.sweep.point.solve_point` on a :class:`~rh5_planner.sweep.point.PointTask` (plain data)
 and returns the point's row and solution. Ray retries a task whose worker or node died (``max_retries``); the
-row's ``attempt`` says which attempt delivered it. Tasks report their start (host, pid) to a small actor, which
-the progress display and ``status.json`` read for the points running now.
+row's ``attempt`` says which attempt delivered it (0: unknown, the monitor did not answer). Tasks report their start
+(host, pid) to a small actor, which the progress display and ``status.json`` read for the points running now.
 """
 
 from __future__ import annotations
@@ -57,14 +57,10 @@ class _Monitor:
 
 
 def _solve(task: PointTask, warm: WarmStart | None, monitor: Any) -> PointOutcome:
-    """The Ray task: report the start, solve, tag the row with its attempt."""
-    try:
-        attempt = int(ray.get(monitor.started.remote(task.point, platform.node(), os.getpid()), timeout=30))
-    except (ray.exceptions.RayError, TimeoutError):
-        attempt = 0  # the monitor is gone: solving matters more than counting
-    outcome = solve_point(task, warm)
-    outcome.row["attempt"] = attempt
-    return outcome
+    """The Ray task: report the start (without waiting: a task blocked in ray.get hands its CPU to another task, and
+    two points would then share one core), then solve."""
+    monitor.started.remote(task.point, platform.node(), os.getpid())
+    return solve_point(task, warm)
 
 
 def _use_token_if_available() -> None:
@@ -142,20 +138,24 @@ class RayExecutor:
                 out.append(ray.get(ref))
             except ray.exceptions.RayError as err:
                 out.append(failed_outcome(task, f"{type(err).__name__}: {err}"))
-        self._refresh_running()
+        starts = self._refresh_running()
+        for outcome in out:  # the task reported its start seconds before it delivered: the count is complete
+            outcome.row["attempt"] = starts.get(str(outcome.row["point"]), (0, 0, 0.0, 0))[3]
         return out
 
-    def _refresh_running(self) -> None:
+    def _refresh_running(self) -> dict[str, tuple[str, int, float, int]]:
+        """Ask the monitor for the starts; returns its snapshot (empty if it did not answer)."""
         try:
             snapshot = ray.get(self._monitor.snapshot.remote(), timeout=10)
         except (ray.exceptions.RayError, TimeoutError):
-            return  # keep the last known state
+            return {}  # keep the last known running set
         pending = {t.point for t in self._tasks.values()}
         self._running = {
             p: Running(p, host, pid, started, attempt)
             for p, (host, pid, started, attempt) in snapshot.items()
             if p in pending
         }
+        return snapshot
 
     def running(self) -> dict[str, Running]:
         """The points whose latest attempt started and has not delivered yet."""
