@@ -1,10 +1,12 @@
 """Sweep bench: the local Ray default with 2 workers against one sequential process, and what warm starts save.
 
-Run: ``.venv/bin/python bench/sweep.py [--motion squat_with_5kg_weights] [--axis payload_kg_per_hand=0:10:3
---axis knee:velocity=1:2.5:4] [--set key=value ...] [--workers 2] [--max-iterations 200]``.
+Run: ``OMP_NUM_THREADS=1 .venv/bin/python bench/sweep.py [--motion squat_with_5kg_weights]
+[--axis payload_kg_per_hand=0:10:6 --axis knee:velocity=1:2.5:8] [--set key=value ...] [--workers 2]
+[--max-iterations 200]`` (48 points by default; ``OMP_NUM_THREADS=1`` gives the sequential process one thread, as Ray
+gives each worker, so that it compares one core with two).
 
 The same points are solved three times in one run, each into a fresh checkpoint: one after the other in this
-process (the serial executor, one Crocoddyl thread, as each Ray worker has), on a local Ray instance with
+process (the serial executor, one Crocoddyl thread per point, as in each Ray worker), on a local Ray instance with
 ``--workers`` workers (with warm starts, as the sequential run), and on Ray again with every point started cold.
 Prints the wall times and the speed-up of Ray over the sequential process, with and without the instance's
 start-up, and the iterations the warm-started points needed against the same points started cold, as ratios. The
@@ -53,7 +55,7 @@ def main() -> None:
     parser.add_argument("--max-iterations", type=int, default=200)
     args = parser.parse_args()
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-    axes = tuple(parse_axis(a) for a in (args.axis or ["payload_kg_per_hand=0:10:3", "knee:velocity=1:2.5:4"]))
+    axes = tuple(parse_axis(a) for a in (args.axis or ["payload_kg_per_hand=0:10:6", "knee:velocity=1:2.5:8"]))
     base = parse_overrides(args.set)
     warm = Grid(args.motion, axes, base)
     cold = Grid(args.motion, axes, base, warm_start=False)
