@@ -8,14 +8,17 @@ gives each worker, so that it compares one core with two).
 The same points are solved three times in one run, each into a fresh checkpoint: one after the other in this
 process (the serial executor, one Crocoddyl thread per point, as in each Ray worker), on a local Ray instance with
 ``--workers`` workers (with warm starts, as the sequential run), and on Ray again with every point started cold.
-Prints the wall times and the speed-up of Ray over the sequential process, with and without the instance's
-start-up, and the iterations the warm-started points needed against the same points started cold, as ratios. The
-results of the sequential and the Ray run must agree (same warm starts, so the same iterations per point).
+First it measures the machine's own ceiling: how much faster ``--workers`` processes get through copies of a pure
+CPU loop than one process (2.0 where each process has a core of its own). Prints the wall times and the speed-up of
+Ray over the sequential process, with and without the instance's start-up, and the iterations the warm-started
+points needed against the same points started cold, as ratios. The results of the sequential and the Ray run must
+agree (same warm starts, so the same iterations per point).
 """
 
 from __future__ import annotations
 
 import argparse
+import multiprocessing
 import os
 import tempfile
 import time
@@ -45,6 +48,27 @@ def _run(grid: Grid, executor_factory: Any, folder: Path, max_iterations: int) -
     return rows, t2 - t0, t2 - t1
 
 
+def _spin(n: int) -> float:
+    """A fixed amount of pure CPU work (no memory traffic); returns its wall time."""
+    start = time.perf_counter()
+    x = 0
+    for i in range(n):
+        x += i
+    return time.perf_counter() - start
+
+
+def machine_parallelism(workers: int, n: int = 15_000_000) -> float:
+    """How much faster ``workers`` processes get through ``workers`` copies of the same loop than one process does
+    one after the other (``workers`` on a machine that gives every process a core of its own)."""
+    alone = _spin(n)
+    with multiprocessing.get_context("spawn").Pool(workers) as pool:
+        pool.map(_spin, [1000] * workers)  # start the processes before timing
+        start = time.perf_counter()
+        pool.map(_spin, [n] * workers)
+        together = time.perf_counter() - start
+    return workers * alone / together
+
+
 def main() -> None:
     """Solve the points three ways and print the ratios."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -61,6 +85,8 @@ def main() -> None:
     cold = Grid(args.motion, axes, base, warm_start=False)
     with tempfile.TemporaryDirectory(prefix="rh5_sweep_bench_") as scratch:
         root = Path(scratch)
+        ceiling = machine_parallelism(args.workers)
+        print(f"this machine: {args.workers} processes run a pure CPU loop {ceiling:.2f}x as fast as one", flush=True)
         print(f"{args.motion}: {warm.size} points over {', '.join(a.key for a in axes)}", flush=True)
         serial, serial_wall, _ = _run(warm, SerialExecutor, root / "serial", args.max_iterations)
         print(f"sequential (this process): {serial_wall:.1f} s", flush=True)
