@@ -198,7 +198,9 @@ class Grid:
                     msg = f"sweep {SPEED_KEY!r} or length_m, not both"
                     raise GridError(msg)
             elif axis.key not in nominal.parameters() or axis.key == "name":
-                msg = f"axis {axis.key!r}: {self.motion} has no such parameter; known: {sorted(nominal.parameters())}"
+                known = sorted(k for k in nominal.parameters() if k != "name")
+                known += [SPEED_KEY] if isinstance(nominal, WalkMotion) else []
+                msg = f"axis {axis.key!r}: {self.motion} has no such parameter; known: {known}, or PATTERN:KIND"
                 raise GridError(msg)
 
     @property
