@@ -6,11 +6,12 @@ Usage::
     rh5-plan --list
     rh5-plan --table [MOTION ...]            # the paper's feasibility table, compared with ours
     rh5-plan --design MOTION [--scale knee:velocity ...] [--factors 1,1.5,2,3,4]
+    rh5-plan --sweep MOTION key=start:stop:count ... [--address ADDR] [--workers N] [--output-dir DIR]
 
 A progress bar on stderr shows iteration, cost, stop criterion and elapsed time while Box-FDDP runs. Values of
 ``--set`` are YAML (``--set length_m=0.4``, ``--set costs=[foot,com,joint]``). Exit codes: 0 done (and
 converged), 1 the solver did not converge (files are still written), 2 bad input (unknown motion, parameter or
-limit). No ROS needed. Crocoddyl is imported only when something is planned.
+limit; for --sweep see rh5_planner.sweep.cli). No ROS needed. Crocoddyl is imported only when something is planned.
 """
 
 from __future__ import annotations
@@ -47,6 +48,8 @@ PAPER_MOTIONS: Final = (
 DEFAULT_OUTPUT_DIR: Final = Path("out/plans")
 EXIT_NOT_CONVERGED: Final = 1
 EXIT_USAGE: Final = 2
+DEFAULT_THREADS: Final = 2
+"""Threads of the derivative pass for one plan (a sweep runs one thread per point, one point per core)."""
 
 
 class UsageError(Exception):
@@ -141,7 +144,7 @@ def _settings(args: argparse.Namespace, callback: Any) -> SolverSettings:
     return SolverSettings(
         max_iterations=args.max_iterations,
         stop_threshold=args.stop_threshold,
-        nthreads=args.threads,
+        nthreads=args.threads or DEFAULT_THREADS,
         callback=callback,
     )
 
@@ -298,6 +301,18 @@ def _design(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
     return 0 if result.feasible else EXIT_NOT_CONVERGED
 
 
+def _sweep(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
+    if len(args.sweep) < 2:
+        raise UsageError("--sweep MOTION key=start:stop:count ...: at least one axis")
+    from .sweep.cli import run  # noqa: PLC0415  (Crocoddyl and, for the Ray engine, Ray only for a sweep)
+    from .sweep.grid import GridError  # noqa: PLC0415
+
+    try:
+        return run(args, parse_overrides(args.set), out, err)
+    except GridError as error:
+        raise UsageError(str(error)) from None
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``rh5-plan``."""
     parser = argparse.ArgumentParser(
@@ -311,13 +326,22 @@ def build_parser() -> argparse.ArgumentParser:
         "--table", nargs="*", metavar="MOTION", help="feasibility table of these motions (default: the paper's six)"
     )
     mode.add_argument("--design", metavar="MOTION", help="run the design-improvement heuristic on MOTION")
+    mode.add_argument(
+        "--sweep",
+        nargs="+",
+        metavar="MOTION_OR_AXIS",
+        help="sweep MOTION over a grid: key=start:stop:count or key=v1,v2 per axis; keys: motion parameters, "
+        "speed_m_s (walks), design limits PATTERN:KIND (knee:velocity); Ray runs the points",
+    )
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="motion parameter override")
     parser.add_argument(
         "--output-dir", default=None, help=f"output folder (default for planning: {DEFAULT_OUTPUT_DIR})"
     )
     parser.add_argument("--max-iterations", type=int, default=200, help="Box-FDDP iteration cap (default 200)")
     parser.add_argument("--stop-threshold", type=float, default=1e-7, help="Box-FDDP stop threshold (default 1e-7)")
-    parser.add_argument("--threads", type=int, default=2, help="threads of the derivative pass (default 2)")
+    parser.add_argument(
+        "--threads", type=int, default=None, help="threads of the derivative pass (default 2; 1 per point in a sweep)"
+    )
     parser.add_argument("--no-plots", action="store_true", help="do not write the PNG plots")
     parser.add_argument(
         "--scale",
@@ -328,7 +352,25 @@ def build_parser() -> argparse.ArgumentParser:
         "knee:velocity (KIND: position, velocity, torque; default: the limits the nominal solution violates)",
     )
     parser.add_argument("--factors", default="1,1.5,2,3,4", help="scale factors for --design (default 1,1.5,2,3,4)")
+    _add_sweep_arguments(parser)
     return parser
+
+
+def _add_sweep_arguments(parser: argparse.ArgumentParser) -> None:
+    """The sweep's own options (rh5_planner.sweep.cli; imported only for a sweep: it brings Crocoddyl)."""
+    group = parser.add_argument_group("sweep (--sweep MOTION key=start:stop:count ...)")
+    group.add_argument(
+        "--engine",
+        choices=("ray", "serial"),
+        default="ray",
+        help="ray (default): Ray tasks on a local instance or --address; serial: one point after the other here",
+    )
+    group.add_argument("--address", default=None, help="Ray cluster to run on (e.g. 127.0.0.1:6379 or auto)")
+    group.add_argument("--workers", type=int, default=None, help="CPUs of the local Ray instance (default: cores)")
+    group.add_argument("--no-warm-start", action="store_true", help="start every point cold")
+    group.add_argument("--warm-chain", type=int, default=4, help="longest warm-start chain on the last axis (4)")
+    group.add_argument("--restart", action="store_true", help="discard another sweep's checkpoint in the folder")
+    group.add_argument("--no-figures", action="store_true", help="write the table only")
 
 
 def main(argv: Sequence[str] | None = None, *, out: IO[str] | None = None, err: IO[str] | None = None) -> int:
@@ -354,6 +396,10 @@ def main(argv: Sequence[str] | None = None, *, out: IO[str] | None = None, err: 
             if args.motion:
                 raise UsageError("give the motion after --design only")
             return _design(args, out, err)
+        if args.sweep:
+            if args.motion:
+                raise UsageError("give the motion after --sweep only: --sweep MOTION key=start:stop:count ...")
+            return _sweep(args, out, err)
         if not args.motion:
             raise UsageError("a MOTION (or --list, --table, --design) is required")
         if args.scale:

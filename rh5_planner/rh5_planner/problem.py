@@ -59,6 +59,7 @@ JOINT_NAMES with q_index/v_index.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import fnmatch
 import functools
 import math
@@ -874,6 +875,10 @@ class PlanResult:
     phase_names: tuple[str, ...]
     solver_log: Mapping[str, Any]
     com: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    xs_all: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+    """The solver's states at every node, impulse nodes included (a warm start for :func:`solve`'s ``guess``)."""
+    us_all: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+    """The solver's controls at every node (impulse nodes have none: a (0,) row each); object array if ragged."""
 
     @property
     def converged(self) -> bool:
@@ -961,21 +966,42 @@ def _extract(built: BuiltProblem, solver: crocoddyl.SolverBoxFDDP, log: Mapping[
         phase_names=tuple(names),
         solver_log=log,
         com=com,
+        xs_all=np.array(xs_all),
+        us_all=_stack(us_all),
     )
 
 
+def _stack(rows: Sequence[FloatArray]) -> FloatArray:
+    """Rows of equal length as a 2D array, else an object array of rows (impulse nodes have no controls)."""
+    if len({len(r) for r in rows}) <= 1:
+        return np.array(rows)
+    out = np.empty(len(rows), dtype=object)
+    out[:] = list(rows)
+    return out
+
+
 def solve(
-    motion: MotionSpec, settings: SolverSettings | None = None, *, limit_scale: LimitScaleLike | None = None
+    motion: MotionSpec,
+    settings: SolverSettings | None = None,
+    *,
+    limit_scale: LimitScaleLike | None = None,
+    guess: tuple[Sequence[FloatArray], Sequence[FloatArray]] | None = None,
 ) -> PlanResult:
     """Build and solve ``motion`` with Box-FDDP; returns the knots, wrenches, CoPs and the solver log.
 
     ``limit_scale`` plans with scaled joint limits (see :data:`LimitScaleLike`); ``PlanResult.robot`` then
-    carries the scaled limits, and the solver log the factors that differ from 1."""
+    carries the scaled limits, and the solver log the factors that differ from 1. ``guess`` = (xs, us) warm-starts
+    the solve from another solution of the same knot sequence (a neighbour in a parameter sweep: ``PlanResult.xs_all``
+    and ``us_all``): the continuation stages are skipped, since they would lead away from an optimum of the full
+    problem, and the final stage starts from it with ``stage_regularization``; a guess of the wrong size raises
+    ValueError. The solver log's ``warm_start`` says whether one was used."""
     settings = settings or SolverSettings()
     t_build = time.perf_counter()
     built = build_problem(
         motion, settings.cost_config, interpolate_guess=settings.interpolate_guess, limit_scale=limit_scale
     )
+    if guess is not None:
+        built = _with_guess(built, guess)
     built.problem.nthreads = settings.nthreads
     # Box-FDDP's own line search is kept (alphas 1, 1/2, ..., 2^-9; th_acceptStep 0.1). alphas 1, 1/4, 1/16, ...
     # (also with th_acceptStep 0.01) cut the walk's forward passes from 3.05 to 2.1-2.3 per iteration, but a forward
@@ -984,7 +1010,7 @@ def solve(
     solver = crocoddyl.SolverBoxFDDP(built.problem)
     build_time = time.perf_counter() - t_build
     config = motion_config(motion.name, settings.cost_config or load_cost_config())
-    stages = [*(config.get("continuation") or []), {}] if settings.continuation else [{}]
+    stages = [*(config.get("continuation") or []), {}] if settings.continuation and guess is None else [{}]
     sums = _cost_sums(built.problem)
     base = [{name: float(item.weight) for name, item in costs.costs.todict().items()} for costs in sums]
     xs, us, feasible = built.xs_guess, built.us_guess, False
@@ -1004,7 +1030,8 @@ def solve(
             if final
             else min(int(stage.get("max_iterations", 50)), settings.max_iterations - iterations)
         )
-        regularization = settings.stage_regularization if k > 0 else settings.guess_regularization
+        warm = k > 0 or guess is not None
+        regularization = settings.stage_regularization if warm else settings.guess_regularization
         if built.actuators is not None and k > 0:
             built.actuators.refresh(xs, us)  # bounds at the previous stage's optimum (the first: at the guess)
         solved = bool(solver.solve(xs, us, max(1, budget), feasible, regularization)) or monitor.stalled
@@ -1047,6 +1074,7 @@ def solve(
         "cost_terms": sorted(built.terms),
         "mass_kg": robot_mass(built.robot),
         "actuator_limits": actuator_log,
+        "warm_start": guess is not None,
     }
     scaled = {
         f"{name}:{kind}": float(f[j])
@@ -1059,6 +1087,21 @@ def solve(
     if not math.isfinite(log["cost"]):
         log["converged"] = False
     return _extract(built, solver, log)
+
+
+def _with_guess(built: BuiltProblem, guess: tuple[Sequence[FloatArray], Sequence[FloatArray]]) -> BuiltProblem:
+    """``built`` with the warm start ``guess`` = (xs, us) in place of its own (ValueError if the sizes differ); the
+    actuator bounds move to the guess, as they start from the built guess otherwise."""
+    xs = [np.array(x, dtype=float) for x in guess[0]]
+    us = [np.array(u, dtype=float) for u in guess[1]]
+    ok = len(xs) == len(built.xs_guess) and len(us) == len(built.us_guess)
+    ok = ok and all(a.shape == b.shape for a, b in zip([*xs, *us], [*built.xs_guess, *built.us_guess], strict=True))
+    if not ok:
+        msg = f"{built.motion.name}: the warm start does not fit its {len(built.specs)} knots"
+        raise ValueError(msg)
+    if built.actuators is not None:
+        built.actuators.refresh(xs, us)
+    return dataclasses.replace(built, xs_guess=xs, us_guess=us)
 
 
 def _refine_actuator_limits(
