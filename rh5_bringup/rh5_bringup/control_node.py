@@ -42,6 +42,7 @@ class ControlNode(SuiteNode):
         super().__init__(interfaces.CONTROL_NODE, "rh5_bringup", "params/control.yaml")
         self.driver, self.mapper, self.stabilizer = driver, mapper, stabilizer
         self.streams = StreamPublisherProcess(self.get_namespace())
+        self._streams_closed = False
         self._hosts = {
             topic.name: host for topic, host in zip(STREAMS, (driver, mapper, stabilizer, mapper), strict=True)
         }
@@ -132,7 +133,8 @@ class ControlNode(SuiteNode):
         """Stop the cycle, then the publishers; the streams' final counts go to their nodes' summaries."""
         self.loop.stop()
         self.publisher.stop()
-        if self.streams.process.returncode is None:  # once: the counts go to the summaries once
+        if not self._streams_closed:  # once: the counts go to the summaries once
+            self._streams_closed = True
             for name, count in self.streams.close().items():
                 self._hosts[name].sent[name] += count
 
