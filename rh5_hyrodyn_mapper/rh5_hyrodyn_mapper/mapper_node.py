@@ -45,7 +45,7 @@ class MapperNode(SuiteNode):
         self.actuator_codec_out = JointStateCodec(ACTUATOR_NAMES)
         self.joint_codec_out = JointStateCodec(JOINT_NAMES)
         if self.params["publish_robot_description"]:
-            self.advertise(interfaces.ROBOT_DESCRIPTION)(String(data=generate_urdf()))
+            self.advertise(interfaces.ROBOT_DESCRIPTION)(String(data=generate_urdf(visuals=True)))
         self.publish_actuator_commands = self.advertise(interfaces.ACTUATOR_COMMANDS)
         self.publish_joint_states = self.advertise(interfaces.JOINT_STATES)
         self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
