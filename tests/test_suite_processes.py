@@ -36,6 +36,7 @@ SPEC_OF_NODE = {
     "control": ("rh5_bringup", "params/control.yaml"),
     "sim_hardware": ("rh5_bringup", "params/sim_hardware.yaml"),
     "recorder": ("rh5_bringup", "params/recorder.yaml"),
+    "state_publisher": ("rh5_hyrodyn_mapper", "params/state_publisher.yaml"),
 }
 RUN_SECONDS = 2.0
 
@@ -64,9 +65,19 @@ def suite(ros_graph: Any, ros_test_environment: dict[str, str]) -> Any:
     from std_msgs.msg import String
 
     bringup = load_bringup().with_parameters("recorder", output=str(_log_dir(ros_test_environment, "suite") / "bag"))
+    from diagnostic_msgs.msg import DiagnosticArray
+    from tf2_msgs.msg import TFMessage
+
     descriptions: list[str] = []
     ros_graph.create_subscription(
         String, interfaces.ROBOT_DESCRIPTION.name, lambda m: descriptions.append(m.data), interfaces.LATCHED_QOS
+    )
+    tf: list[Any] = []
+    ros_graph.create_subscription(TFMessage, "/tf", tf.append, interfaces.TF_QOS)
+    ros_graph.create_subscription(TFMessage, "/tf_static", tf.append, interfaces.TF_STATIC_QOS)
+    statuses: dict[str, Any] = {}
+    ros_graph.create_subscription(
+        DiagnosticArray, "/diagnostics", lambda m: statuses.update({s.name: s for s in m.status}), interfaces.EVENT_QOS
     )
     # The suite joins the session's domain, where the observer lives.
     run = SuiteRun(bringup, _log_dir(ros_test_environment, "suite"), int(ros_test_environment["ROS_DOMAIN_ID"]))
@@ -92,10 +103,13 @@ def suite(ros_graph: Any, ros_test_environment: dict[str, str]) -> Any:
         while time.monotonic() < end:
             rclpy.spin_once(ros_graph, timeout_sec=0.05)
         observed["crashed"] = [p.spec.name for p in run.exited()]
+        observed["actions"] = dict(ros_graph.get_service_names_and_types())
     observed["exit_codes"] = {name: p.process.returncode for p in run.processes for name in p.names}
     observed["summaries"] = {s["node"]: s for p in run.processes for s in parse_summaries(p.output())}
     observed["stderr"] = {name: p.stderr_path.read_text() for p in run.processes for name in p.names}
     observed["descriptions"] = descriptions
+    observed["tf"] = tf
+    observed["diagnostics"] = statuses
     return observed
 
 
@@ -141,6 +155,36 @@ def test_robot_description_is_latched_and_complete(suite: Any) -> None:
     assert urdf.count('type="revolute"') == len(JOINT_NAMES)
     for joint in JOINT_NAMES:
         assert f'name="{joint}"' in urdf
+
+
+def test_tf_holds_every_link_of_the_urdf_and_the_odom_transform(suite: Any) -> None:
+    import xml.etree.ElementTree as ET
+
+    edges = {(t.header.frame_id, t.child_frame_id) for m in suite["tf"] for t in m.transforms}
+    links = {link.get("name") for link in ET.fromstring(suite["descriptions"][-1]).iter("link")}
+    assert links - {child for _, child in edges} == {"RH5_Root_Link"} - {child for _, child in edges}
+    assert ("odom", "RH5_Root_Link") in edges
+
+
+def test_robot_description_has_a_visual_for_every_link_with_mass(suite: Any) -> None:
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(suite["descriptions"][-1])
+    massive = [link for link in root.iter("link") if float(link.find("inertial/mass").get("value")) > 0.0]
+    assert [link.get("name") for link in massive if link.find("visual") is None] == []
+
+
+def test_the_stabilizer_serves_follow_joint_trajectory_in_the_control_process(suite: Any) -> None:
+    send_goal = "/stabilizer/follow_joint_trajectory/_action/send_goal"
+    assert suite["actions"].get(send_goal) == ["control_msgs/action/FollowJointTrajectory_SendGoal"]
+
+
+def test_diagnostics_have_a_status_per_component_and_task(suite: Any) -> None:
+    names = set(suite["diagnostics"])
+    expected = {"driver: safety", "mapper: limits", "mapper: kinematics", "stabilizer: tracking"}
+    expected |= {"stabilizer: trajectory", "planner: solver", "recorder: bag", "sim_hardware: boards"}
+    expected |= {"driver: board LLKnee_Act1", "rh5/driver", "rh5/stabilizer", "rh5/control"}
+    assert expected <= names, sorted(names)
 
 
 def test_bad_launch_parameter_is_refused_with_the_reason(ros_graph: Any, ros_test_environment: dict[str, str]) -> None:

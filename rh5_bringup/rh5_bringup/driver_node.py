@@ -23,6 +23,7 @@ from rh5_bringup.transports import open_transport
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec, Level, Status, diagnostics_to_msg
+from rh5_msgs_py.diagnostic_tasks import Increases, task_status
 from rh5_msgs_py.names import ACTUATOR_NAMES
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
 from rh5_msgs_py.realtime import DeadlineLoop
@@ -85,6 +86,7 @@ class DriverNode(SuiteNode):
         self.create_service(Trigger, interfaces.ESTOP_SERVICE, self._on_estop)
         self.create_service(Trigger, interfaces.RESET_ESTOP_SERVICE, self._on_reset_estop)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
+        self._increases = Increases()
         core = self.core
         self.apply_live(
             {
@@ -176,7 +178,47 @@ class DriverNode(SuiteNode):
         else:
             level, message = Level.OK, "driving" if core.enabled else "boards hold (not enabled)"
         status = Status("rh5/driver", level, message, values, hardware_id="rh5")
-        self._publish_diagnostics(diagnostics_to_msg([status], stamp_ns=self.get_clock().now().nanoseconds))
+        statuses = [status, *self.task_statuses(decoder)]
+        self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=self.get_clock().now().nanoseconds))
+
+    def task_statuses(self, decoder: Any) -> list[Status]:
+        """``driver: safety``, ``driver: loop`` (on its own) and ``driver: board <name>`` for every board."""
+        core, grew = self.core, self._increases
+        if core.estopped:
+            safety = task_status("driver", "safety", Level.ERROR, "emergency stop latched")
+        elif core.safe_hold_reason:
+            safety = task_status("driver", "safety", Level.ERROR, "safe hold", {"reason": core.safe_hold_reason})
+        else:
+            safety = task_status("driver", "safety", Level.OK, "driving" if core.enabled else "boards hold")
+        out = [safety]
+        if self.loop is not None:
+            stats = self.loop.stats()
+            new = grew("loop.misses", stats.deadline_misses)
+            level, text = (Level.WARN, "deadline misses") if new > 0 else (Level.OK, "on time")
+            # without the "loop." prefix: the report's loop table reads those keys from rh5/driver
+            timing = {k.removeprefix("loop."): v for k, v in self.loop.diagnostics().items()}
+            out.append(task_status("driver", "loop", level, text, {"new_deadline_misses": int(new), **timing}))
+        now = time.monotonic_ns()
+        started = core.started_ns and now - core.started_ns > max(core.silence_timeout_ns, 200_000_000)
+        for board in core.board_map:
+            stats = decoder.senders.get(board.address)
+            frames = 0 if stats is None else stats.frames
+            bad = 0 if stats is None else stats.crc_errors + stats.lost + stats.malformed + stats.oversize
+            new_bad = grew(f"bad.{board.name}", bad)
+            silent_ms = (now - int(core.heard_ns[board.index])) / 1e6
+            values = {"frames": frames, "bad_frames": bad, "new_bad_frames": int(new_bad), "error_bits": 0}
+            values["error_bits"] = int(core.readings.errors[board.index])
+            if started and silent_ms > core.silence_timeout_ns / 1e6:
+                level, text = Level.ERROR, "silent"
+                values["silent_ms"] = round(silent_ms, 1) if core.heard_ns[board.index] else "never heard"
+            elif values["error_bits"]:
+                level, text = Level.ERROR, "reports errors"
+            elif new_bad > 0:
+                level, text = Level.WARN, "lost or corrupt frames"
+            else:
+                level, text = Level.OK, "answering"
+            out.append(task_status("driver", f"board {board.name}", level, text, values))
+        return out
 
     def summary(self) -> dict[str, Any]:
         """Adds the safety state, counters and loop timing to the base summary."""

@@ -28,6 +28,7 @@ from rh5_joint_stabilizer.goal_check import Tolerances
 from rh5_joint_stabilizer.reference import PlannedTrajectory, TrajectoryRejectedError, validate_trajectory
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec, Level, Status, diagnostics_to_msg, joint_trajectory_from_cdr
+from rh5_msgs_py.diagnostic_tasks import task_status
 from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
 from rh5_msgs_py.realtime import DeadlineLoop, LatestValue
@@ -342,8 +343,33 @@ class StabilizerNode(SuiteNode):
         if self.loop is not None and self.loop.error is not None:
             level, values["loop_error"] = Level.ERROR, repr(self.loop.error)
         status = Status("rh5/stabilizer", level, self.core.last_reason or self.core.state.value, values, "rh5")
+        statuses = [status, *self.task_statuses(peak)]
         # wall time, also under use_sim_time: every stamp of the suite is on one clock (/clock maps it to sim time)
-        self._publish_diagnostics(diagnostics_to_msg([status], stamp_ns=time.time_ns()))
+        self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=time.time_ns()))
+
+    def task_statuses(self, peak: np.ndarray) -> list[Status]:
+        """``stabilizer: tracking`` (WARN when it holds for a reason other than a request or the end of the motion)
+        and ``stabilizer: trajectory`` (ERROR while the last trajectory or goal offered was rejected)."""
+        core = self.core
+        worst = int(np.argmax(peak))
+        values = {"state": core.state.value, "max_error_rad": round(float(peak[worst]), 6)}
+        values["worst_joint"] = JOINT_NAMES[worst]
+        requested = any(word in core.last_reason for word in ("requested", "finished"))
+        if core.state == State.HOLDING and not requested:
+            tracking = task_status(
+                "stabilizer", "tracking", Level.WARN, "holding", {**values, "reason": core.last_reason}
+            )
+        elif core.state == State.STOPPED and "emergency" in core.last_reason:
+            tracking = task_status("stabilizer", "tracking", Level.ERROR, "stopped by the emergency stop", values)
+        else:
+            tracking = task_status("stabilizer", "tracking", Level.OK, core.state.value, values)
+        rejection = core.rejection or (self.action.rejection if self.action is not None else "")
+        if rejection:
+            trajectory = task_status("stabilizer", "trajectory", Level.ERROR, "rejected", {"reason": rejection})
+        else:
+            loaded = "loaded" if core.trajectory is not None else "none"
+            trajectory = task_status("stabilizer", "trajectory", Level.OK, loaded)
+        return [tracking, trajectory]
 
     def summary(self) -> dict[str, Any]:
         """Adds the state, the loop timing and the recent events to the base summary."""
