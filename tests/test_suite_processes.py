@@ -310,7 +310,7 @@ def test_rh5_up_no_record_runs_the_suite_without_the_recorder(tmp_path: Path) ->
     command += ["--bringup", str(_bringup_file(tmp_path, bag)), "--log-dir", str(tmp_path / "log")]
     done = subprocess.run(command, capture_output=True, text=True, timeout=120, check=False)
     assert done.returncode == 0, done.stderr
-    assert "6 nodes running: control, driver, mapper, planner, sim_hardware, stabilizer" in done.stdout
+    assert "7 nodes running: control, driver, mapper, planner, sim_hardware, stabilizer, state_publisher" in done.stdout
     assert "recorder" not in done.stdout
     assert not bag.exists()
 
@@ -361,7 +361,12 @@ def test_the_suite_runs_on_when_the_recorder_is_killed(tmp_path: Path) -> None:
     exits = dict(line.split(" exit ") for line in out.lines if " exit " in line)
     exits = {name.strip(): int(code) for name, code in exits.items()}
     assert exits.pop("recorder") == -signal.SIGKILL
-    assert set(exits) == {"sim_hardware", "control", "planner"}  # control hosts the driver, mapper and stabilizer
+    assert set(exits) == {
+        "sim_hardware",
+        "control",
+        "state_publisher",
+        "planner",
+    }  # control hosts the driver, mapper and stabilizer
     assert all(code == 0 for code in exits.values()), out.text
     assert up.returncode == 1, "a node died: rh5 up says so in its exit code"
     recovered = subprocess.run([rh5, "bag", "recover", str(bag)], capture_output=True, text=True, check=False)
