@@ -56,6 +56,31 @@ def _call(node: Any, client: Any, request: Any, timeout_s: float = 10.0) -> Any:
     return future.result()
 
 
+def _lifecycle_checks(node: Any) -> dict[str, Any]:
+    """The managed driver in the control process: its state after autostart, a transition the state does not have
+    (refused, by label and by id), then activate."""
+    from lifecycle_msgs.msg import Transition
+    from lifecycle_msgs.srv import ChangeState, GetState
+
+    def state() -> str:
+        client = node.create_client(GetState, "/driver/get_state")
+        return str(_call(node, client, GetState.Request()).current_state.label)
+
+    def change(**transition: Any) -> bool:
+        client = node.create_client(ChangeState, "/driver/change_state")
+        return bool(_call(node, client, ChangeState.Request(transition=Transition(**transition))).success)
+
+    end = time.monotonic() + 10.0
+    while state() != "inactive" and time.monotonic() < end:  # autostart: configure
+        time.sleep(0.1)
+    checks: dict[str, Any] = {"after_autostart": state()}
+    checks["configure_again_by_label"] = change(label="configure")
+    checks["configure_again_by_id"] = change(id=Transition.TRANSITION_CONFIGURE)
+    checks["activate"] = change(label="activate")
+    checks["active"] = state()
+    return checks
+
+
 @pytest.fixture(scope="module")
 def suite(ros_graph: Any, ros_test_environment: dict[str, str]) -> Any:
     """The whole bringup running for a few seconds, then stopped with SIGINT; yields what was observed, per node
@@ -98,6 +123,7 @@ def suite(ros_graph: Any, ros_test_environment: dict[str, str]) -> Any:
                 DescribeParameters.Request(names=spec_names),
             )
             observed["descriptors"][name] = {d.name: d for d in described.descriptors}
+        observed["lifecycle"] = _lifecycle_checks(ros_graph)
         observed["start"] = call_trigger(ros_graph, "/stabilizer/start")
         end = time.monotonic() + RUN_SECONDS
         while time.monotonic() < end:
@@ -155,6 +181,16 @@ def test_robot_description_is_latched_and_complete(suite: Any) -> None:
     assert urdf.count('type="revolute"') == len(JOINT_NAMES)
     for joint in JOINT_NAMES:
         assert f'name="{joint}"' in urdf
+
+
+def test_the_managed_driver_is_configured_and_refuses_a_wrong_transition(suite: Any) -> None:
+    assert suite["lifecycle"] == {
+        "after_autostart": "inactive",
+        "configure_again_by_label": False,
+        "configure_again_by_id": False,
+        "activate": True,
+        "active": "active",
+    }
 
 
 def test_tf_holds_every_link_of_the_urdf_and_the_odom_transform(suite: Any) -> None:
