@@ -24,11 +24,15 @@ lint: $(STAMP)
 
 venv: $(STAMP)
 
+INTERFACES := $(wildcard interfaces/*/CMakeLists.txt interfaces/*/package.xml interfaces/*/*/*.msg interfaces/*/*/*.srv interfaces/*/*/*.action)
+
 # The stamp depends on everything that decides what is installed, so an edited lock re-installs.
-$(STAMP): constraints.txt requirements.txt $(foreach p,$(PACKAGES),$(p)/setup.py $(p)/package.xml) $(wildcard */*/*/*.c)
+# tools/build_interfaces.py then builds the interface packages no wheel provides (interfaces/README.md).
+$(STAMP): constraints.txt requirements.txt tools/build_interfaces.py $(INTERFACES) $(foreach p,$(PACKAGES),$(p)/setup.py $(p)/package.xml) $(wildcard */*/*/*.c)
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	@touch $(VENV)/COLCON_IGNORE  # keep colcon from crawling the venv's share/*/package.xml
 	$(PY) -m pip install --quiet --disable-pip-version-check -c constraints.txt -r requirements.txt
+	$(PY) tools/build_interfaces.py
 	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation --use-pep517 --config-settings editable_mode=compat $(foreach p,$(PACKAGES),-e ./$(p))
 	@touch $(STAMP)
 

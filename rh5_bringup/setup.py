@@ -26,6 +26,7 @@ setup(
         (f"share/{PACKAGE}", ["package.xml"]),
         *share_files("launch"),
         *share_files("config"),
+        *share_files("viz"),
     ],
     # The NDLCom deframing loop in C (rh5_bringup/ndlcom/_framing.c): the 1 kHz cycle's per-byte work.
     ext_modules=[Extension(f"{PACKAGE}.ndlcom._framing", [f"{PACKAGE}/ndlcom/_framing.c"], extra_compile_args=["-O2"])],

@@ -41,6 +41,7 @@ setup(
     entry_points={
         "console_scripts": [
             "mapper_node = rh5_hyrodyn_mapper.mapper_node:main",
+            "state_publisher_node = rh5_hyrodyn_mapper.state_publisher_node:main",
             "rh5_urdf = rh5_hyrodyn_mapper.model.urdf:main",
         ],
     },

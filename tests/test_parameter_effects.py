@@ -60,7 +60,14 @@ def effects(tmp: Path, write_trajectory: Callable[..., Path]) -> dict[str, tuple
             lambda: DriverNode(composed=True),
             {
                 "command_timeout_s": (0.25, lambda n: n.core.command_timeout_ns == 250_000_000),
-                "board_silence_timeout_s": (0.3, lambda n: n.core.silence_timeout_ns == 300_000_000),
+                # the silence rule applies while the link is open (configured); until then the value waits
+                "board_silence_timeout_s": (
+                    0.3,
+                    lambda n: (
+                        n._silence_ns == 300_000_000
+                        and (not n.link.is_open or n.core.silence_timeout_ns == 300_000_000)
+                    ),
+                ),
             },
         ),
         "mapper": (
@@ -83,6 +90,10 @@ def effects(tmp: Path, write_trajectory: Callable[..., Path]) -> dict[str, tuple
                 "ramp_max_velocity": (0.11, lambda n: n.core.ramp_max_velocity == 0.11),
                 "ramp_max_acceleration": (0.9, lambda n: n.core.ramp_max_acceleration == 0.9),
                 "balance_correction": (True, lambda n: n.core.correction is n.balance is not None),
+                # read at each follow_joint_trajectory goal: the defaults the next goal gets
+                "path_tolerance_rad": (0.1, lambda n: bool((n.action._defaults().path == 0.1).all())),
+                "goal_tolerance_rad": (0.03, lambda n: bool((n.action._defaults().goal == 0.03).all())),
+                "goal_time_tolerance_s": (2.5, lambda n: n.action._defaults().goal_time_s == 2.5),
             },
         ),
         "sim_hardware": (

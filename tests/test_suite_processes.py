@@ -36,6 +36,7 @@ SPEC_OF_NODE = {
     "control": ("rh5_bringup", "params/control.yaml"),
     "sim_hardware": ("rh5_bringup", "params/sim_hardware.yaml"),
     "recorder": ("rh5_bringup", "params/recorder.yaml"),
+    "state_publisher": ("rh5_hyrodyn_mapper", "params/state_publisher.yaml"),
 }
 RUN_SECONDS = 2.0
 
@@ -55,6 +56,31 @@ def _call(node: Any, client: Any, request: Any, timeout_s: float = 10.0) -> Any:
     return future.result()
 
 
+def _lifecycle_checks(node: Any) -> dict[str, Any]:
+    """The managed driver in the control process: its state after autostart, a transition the state does not have
+    (refused, by label and by id), then activate."""
+    from lifecycle_msgs.msg import Transition
+    from lifecycle_msgs.srv import ChangeState, GetState
+
+    def state() -> str:
+        client = node.create_client(GetState, "/driver/get_state")
+        return str(_call(node, client, GetState.Request()).current_state.label)
+
+    def change(**transition: Any) -> bool:
+        client = node.create_client(ChangeState, "/driver/change_state")
+        return bool(_call(node, client, ChangeState.Request(transition=Transition(**transition))).success)
+
+    end = time.monotonic() + 10.0
+    while state() != "inactive" and time.monotonic() < end:  # autostart: configure
+        time.sleep(0.1)
+    checks: dict[str, Any] = {"after_autostart": state()}
+    checks["configure_again_by_label"] = change(label="configure")
+    checks["configure_again_by_id"] = change(id=Transition.TRANSITION_CONFIGURE)
+    checks["activate"] = change(label="activate")
+    checks["active"] = state()
+    return checks
+
+
 @pytest.fixture(scope="module")
 def suite(ros_graph: Any, ros_test_environment: dict[str, str]) -> Any:
     """The whole bringup running for a few seconds, then stopped with SIGINT; yields what was observed, per node
@@ -64,9 +90,19 @@ def suite(ros_graph: Any, ros_test_environment: dict[str, str]) -> Any:
     from std_msgs.msg import String
 
     bringup = load_bringup().with_parameters("recorder", output=str(_log_dir(ros_test_environment, "suite") / "bag"))
+    from diagnostic_msgs.msg import DiagnosticArray
+    from tf2_msgs.msg import TFMessage
+
     descriptions: list[str] = []
     ros_graph.create_subscription(
         String, interfaces.ROBOT_DESCRIPTION.name, lambda m: descriptions.append(m.data), interfaces.LATCHED_QOS
+    )
+    tf: list[Any] = []
+    ros_graph.create_subscription(TFMessage, "/tf", tf.append, interfaces.TF_QOS)
+    ros_graph.create_subscription(TFMessage, "/tf_static", tf.append, interfaces.TF_STATIC_QOS)
+    statuses: dict[str, Any] = {}
+    ros_graph.create_subscription(
+        DiagnosticArray, "/diagnostics", lambda m: statuses.update({s.name: s for s in m.status}), interfaces.EVENT_QOS
     )
     # The suite joins the session's domain, where the observer lives.
     run = SuiteRun(bringup, _log_dir(ros_test_environment, "suite"), int(ros_test_environment["ROS_DOMAIN_ID"]))
@@ -87,15 +123,19 @@ def suite(ros_graph: Any, ros_test_environment: dict[str, str]) -> Any:
                 DescribeParameters.Request(names=spec_names),
             )
             observed["descriptors"][name] = {d.name: d for d in described.descriptors}
+        observed["lifecycle"] = _lifecycle_checks(ros_graph)
         observed["start"] = call_trigger(ros_graph, "/stabilizer/start")
         end = time.monotonic() + RUN_SECONDS
         while time.monotonic() < end:
             rclpy.spin_once(ros_graph, timeout_sec=0.05)
         observed["crashed"] = [p.spec.name for p in run.exited()]
+        observed["actions"] = dict(ros_graph.get_service_names_and_types())
     observed["exit_codes"] = {name: p.process.returncode for p in run.processes for name in p.names}
     observed["summaries"] = {s["node"]: s for p in run.processes for s in parse_summaries(p.output())}
     observed["stderr"] = {name: p.stderr_path.read_text() for p in run.processes for name in p.names}
     observed["descriptions"] = descriptions
+    observed["tf"] = tf
+    observed["diagnostics"] = statuses
     return observed
 
 
@@ -141,6 +181,46 @@ def test_robot_description_is_latched_and_complete(suite: Any) -> None:
     assert urdf.count('type="revolute"') == len(JOINT_NAMES)
     for joint in JOINT_NAMES:
         assert f'name="{joint}"' in urdf
+
+
+def test_the_managed_driver_is_configured_and_refuses_a_wrong_transition(suite: Any) -> None:
+    assert suite["lifecycle"] == {
+        "after_autostart": "inactive",
+        "configure_again_by_label": False,
+        "configure_again_by_id": False,
+        "activate": True,
+        "active": "active",
+    }
+
+
+def test_tf_holds_every_link_of_the_urdf_and_the_odom_transform(suite: Any) -> None:
+    import xml.etree.ElementTree as ET
+
+    edges = {(t.header.frame_id, t.child_frame_id) for m in suite["tf"] for t in m.transforms}
+    links = {link.get("name") for link in ET.fromstring(suite["descriptions"][-1]).iter("link")}
+    assert links - {child for _, child in edges} == {"RH5_Root_Link"} - {child for _, child in edges}
+    assert ("odom", "RH5_Root_Link") in edges
+
+
+def test_robot_description_has_a_visual_for_every_link_with_mass(suite: Any) -> None:
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(suite["descriptions"][-1])
+    massive = [link for link in root.iter("link") if float(link.find("inertial/mass").get("value")) > 0.0]
+    assert [link.get("name") for link in massive if link.find("visual") is None] == []
+
+
+def test_the_stabilizer_serves_follow_joint_trajectory_in_the_control_process(suite: Any) -> None:
+    send_goal = "/stabilizer/follow_joint_trajectory/_action/send_goal"
+    assert suite["actions"].get(send_goal) == ["control_msgs/action/FollowJointTrajectory_SendGoal"]
+
+
+def test_diagnostics_have_a_status_per_component_and_task(suite: Any) -> None:
+    names = set(suite["diagnostics"])
+    expected = {"driver: safety", "mapper: limits", "mapper: kinematics", "stabilizer: tracking"}
+    expected |= {"stabilizer: trajectory", "planner: solver", "recorder: bag", "sim_hardware: boards"}
+    expected |= {"driver: board LLKnee_Act1", "rh5/driver", "rh5/stabilizer", "rh5/control"}
+    assert expected <= names, sorted(names)
 
 
 def test_bad_launch_parameter_is_refused_with_the_reason(ros_graph: Any, ros_test_environment: dict[str, str]) -> None:
@@ -266,7 +346,10 @@ def test_rh5_up_no_record_runs_the_suite_without_the_recorder(tmp_path: Path) ->
     command += ["--bringup", str(_bringup_file(tmp_path, bag)), "--log-dir", str(tmp_path / "log")]
     done = subprocess.run(command, capture_output=True, text=True, timeout=120, check=False)
     assert done.returncode == 0, done.stderr
-    assert "7 nodes running: control, control_streams, driver, mapper, planner, sim_hardware, stabilizer" in done.stdout
+    assert (
+        "8 nodes running: control, control_streams, driver, mapper, planner, sim_hardware, stabilizer, state_publisher"
+        in done.stdout
+    )
     assert "recorder" not in done.stdout
     assert not bag.exists()
 
@@ -317,7 +400,12 @@ def test_the_suite_runs_on_when_the_recorder_is_killed(tmp_path: Path) -> None:
     exits = dict(line.split(" exit ") for line in out.lines if " exit " in line)
     exits = {name.strip(): int(code) for name, code in exits.items()}
     assert exits.pop("recorder") == -signal.SIGKILL
-    assert set(exits) == {"sim_hardware", "control", "planner"}  # control hosts the driver, mapper and stabilizer
+    assert set(exits) == {
+        "sim_hardware",
+        "control",
+        "state_publisher",
+        "planner",
+    }  # control hosts the driver, mapper and stabilizer
     assert all(code == 0 for code in exits.values()), out.text
     assert up.returncode == 1, "a node died: rh5 up says so in its exit code"
     recovered = subprocess.run([rh5, "bag", "recover", str(bag)], capture_output=True, text=True, check=False)

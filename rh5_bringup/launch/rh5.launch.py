@@ -1,5 +1,6 @@
 # Generated from rh5_bringup/bringup.yaml by `python -m rh5_bringup.launch_files`: do not edit by hand.
-"""Launch the RH5 control suite: `ros2 launch rh5_bringup rh5.launch.py [sim:=kinematic|physics]`.
+"""Launch the RH5 control suite:
+`ros2 launch rh5_bringup rh5.launch.py [sim:=kinematic|physics] [driver_autostart:=none|configure|activate]`.
 
 separate:=true runs the driver, mapper and stabilizer as three processes instead of the control process.
 """
@@ -25,7 +26,14 @@ ARGUMENTS = {'sim': {'default': 'kinematic',
                                                 'playback_clock': 'ros',
                                                 'rest_velocity_rad_s': 0.25,
                                                 'state_timeout_s': 0.5},
-                                 'driver': {'board_silence_timeout_s': 0.5, 'command_timeout_s': 0.5}}}}}
+                                 'driver': {'board_silence_timeout_s': 0.5, 'command_timeout_s': 0.5}}}},
+ 'driver_autostart': {'default': 'configure',
+                      'choices': ['none', 'configure', 'activate'],
+                      'description': 'Lifecycle transitions the driver makes by itself once started (none, '
+                                     'configure or activate).',
+                      'node': 'driver',
+                      'parameter': 'autostart',
+                      'implies': {}}}
 """Launch arguments: name -> default, choices, description, the node parameter each sets, and the further
 parameters some of its values imply (value -> node -> parameters)."""
 
@@ -63,6 +71,12 @@ NODES = [{'name': 'recorder',
   'package': 'rh5_joint_stabilizer',
   'executable': 'stabilizer_node',
   'parameters': {'state_timeout_s': 0.05},
+  'remappings': [],
+  'hosts': []},
+ {'name': 'state_publisher',
+  'package': 'rh5_hyrodyn_mapper',
+  'executable': 'state_publisher_node',
+  'parameters': {},
   'remappings': [],
   'hosts': []},
  {'name': 'planner',

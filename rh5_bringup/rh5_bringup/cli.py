@@ -50,6 +50,30 @@ def call_set_bool(node: Any, service: str, value: bool, timeout_s: float = 10.0)
     return _call_until_success(node, SetBool, service, SetBool.Request(data=value), timeout_s)
 
 
+def call_lifecycle(node: Any, service: str, label: str, timeout_s: float = 15.0) -> tuple[bool, str]:
+    """Request the lifecycle transition ``label`` through a managed node's ``change_state`` service ``service``
+    (by label: an id the state lacks would end an rclpy node, rclpy#1209), retrying while it is refused (e.g. the
+    node still configures itself), until it succeeds or time runs out."""
+    import rclpy  # noqa: PLC0415
+    from lifecycle_msgs.msg import Transition  # noqa: PLC0415
+    from lifecycle_msgs.srv import ChangeState  # noqa: PLC0415
+
+    client = node.create_client(ChangeState, service)
+    deadline = time.monotonic() + timeout_s
+    try:
+        while time.monotonic() < deadline:
+            if not client.wait_for_service(timeout_sec=0.2):
+                continue
+            future = client.call_async(ChangeState.Request(transition=Transition(label=label)))
+            rclpy.spin_until_future_complete(node, future, timeout_sec=max(0.1, deadline - time.monotonic()))
+            if future.done() and future.result().success:
+                return True, f"{label}: done"
+            time.sleep(0.2)
+        return False, f"{label}: refused or not answered within {timeout_s:g} s"
+    finally:
+        node.destroy_client(client)
+
+
 def _call_until_success(node: Any, kind: Any, service: str, request: Any, timeout_s: float) -> tuple[bool, str]:
     import rclpy  # noqa: PLC0415
 
@@ -97,8 +121,8 @@ def up(
                 print("rh5 up: planning the planner's motion ...", flush=True)
                 _, message = call_trigger(session.node, session.service("planner", "plan"), timeout_s=120.0)
                 print(f"rh5 up: planner plan: {message}", flush=True)
-                _, message = call_set_bool(session.node, session.service("driver", "enable"), True)
-                print(f"rh5 up: driver enable: {message}", flush=True)
+                _, message = call_lifecycle(session.node, session.service("driver", "change_state"), "activate")
+                print(f"rh5 up: driver lifecycle: {message}", flush=True)
                 _, message = call_trigger(session.node, session.service("stabilizer", "start"))
                 print(f"rh5 up: stabilizer start: {message}", flush=True)
         deadline = None if duration_s is None else time.monotonic() + duration_s

@@ -211,6 +211,18 @@ def _call(session: SuiteSession, node: str, service: str, progress: Callable[[st
     return message
 
 
+def _activate_driver(session: SuiteSession, progress: Callable[[str], None]) -> None:
+    """The driver's lifecycle activate (it configured itself at start: autostart), i.e. drive the boards."""
+    from rh5_bringup.cli import call_lifecycle  # noqa: PLC0415
+
+    name = session.service("driver", "change_state")
+    ok, message = call_lifecycle(session.node, name, "activate")
+    progress(f"driver/change_state: {message}")
+    if not ok:
+        msg = f"{name} refused: {message}"
+        raise ExperimentError(msg)
+
+
 def _await_trajectory(session: SuiteSession, monitor: _Monitor, duration_s: float, timeout_s: float = 10.0) -> None:
     """Wait until the stabilizer holds the motion's trajectory (its status says so); raise with its reason if it
     rejected it. Without this a start could play whatever trajectory the stabilizer had before."""
@@ -243,7 +255,7 @@ def _play(
     monitor = _Monitor(session.node)
     _call(session, "planner", "load", progress)
     _await_trajectory(session, monitor, duration_s)
-    _call(session, "driver", "enable", progress, value=True)
+    _activate_driver(session, progress)
     session.sleep(SETTLE_AFTER_ENABLE_S)
     standing_z: float | None = None
     if settings.sim == "physics":

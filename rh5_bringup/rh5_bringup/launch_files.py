@@ -23,7 +23,8 @@ LAUNCH_FILE = "rh5.launch.py"
 
 _TEMPLATE = '''\
 # Generated from rh5_bringup/bringup.yaml by `python -m rh5_bringup.launch_files`: do not edit by hand.
-"""Launch the RH5 control suite: `ros2 launch rh5_bringup {file_name}{argument_usage}`.
+"""Launch the RH5 control suite:
+`ros2 launch rh5_bringup {file_name}{argument_usage}`.
 
 separate:=true runs the driver, mapper and stabilizer as three processes instead of the control process.
 """

@@ -25,6 +25,8 @@ from rclpy.qos import HistoryPolicy, LivelinessPolicy, QoSProfile
 from rh5_bringup.recording import BagWriter, OfferedQos, QueuedBagWriter
 from rh5_bringup.recording.taker import RawTaker
 from rh5_msgs_py import interfaces
+from rh5_msgs_py.conversions import Level, Status, diagnostics_to_msg
+from rh5_msgs_py.diagnostic_tasks import Increases, task_status
 from rh5_msgs_py.interfaces import Topic, message_class
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
 
@@ -117,6 +119,9 @@ class RecorderNode(SuiteNode):
             raise
         self._writer.start()
         self._taker.start()
+        self._increases = Increases()
+        self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
+        self.create_timer(1.0, lambda: self._publish_diagnostics(diagnostics_to_msg(self.task_statuses())))
         self.get_logger().info(f"recording {len(topics)} topics to {self.bag_path}")
 
     def _record(self, topic: Topic, depth: int) -> None:
@@ -138,6 +143,20 @@ class RecorderNode(SuiteNode):
         self.seen[self._names[topic_id]] += 1
         sequence = info["publication_sequence_number"] or 0
         self._writer.try_put(topic_id, info["received_timestamp"], info["source_timestamp"], sequence, data)
+
+    def task_statuses(self) -> list[Status]:
+        """``recorder: bag``: ERROR when writing or taking failed, WARN when messages were dropped since the last
+        report (the writer's queue was full), else OK."""
+        writer = self._writer
+        dropped = sum(writer.dropped.values())
+        new = int(self._increases("dropped", dropped))
+        values = {"bag": str(self.bag_path), "dropped": dropped, "new_dropped": new, "max_pending": writer.high_water}
+        error = writer.error or self._taker.error
+        if error is not None:
+            return [task_status("recorder", "bag", Level.ERROR, "recording failed", {**values, "error": repr(error)})]
+        if new:
+            return [task_status("recorder", "bag", Level.WARN, "messages dropped", values)]
+        return [task_status("recorder", "bag", Level.OK, "recording", values)]
 
     def finish(self) -> None:
         """Take what arrived, stop taking, write everything queued and close the bag. Idempotent."""

@@ -26,6 +26,7 @@ joints mid-step; after 0.5 s of silence the boards tick on their own again.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -39,10 +40,14 @@ from rh5_bringup.sim.physics import PhysicsActuatorBank, build_physics
 from rh5_bringup.transports import open_transport
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py import interfaces
-from rh5_msgs_py.conversions import to_time_msg, wrench_to_msg
+from rh5_msgs_py.conversions import Level, Status, diagnostics_to_msg, to_time_msg, wrench_to_msg
+from rh5_msgs_py.diagnostic_tasks import Increases, task_status
 from rh5_msgs_py.names import ACTUATOR_NAMES, FOOT_FRAMES, NUM_JOINTS
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
 
+DIAGNOSTICS_PERIOD_S = 1.0
+SLOW_SIMULATION = 0.5
+"""Below this fraction of real time (over one report period) ``sim_hardware: physics`` warns."""
 PHYSICS_MAX_CATCH_UP_NS = 1_000_000
 """Physics mode: a late cycle steps 1 ms, never more. A physics cycle costs 0.3-0.7 ms of CPU here; replaying
 3 ms after a stall costs more than 1 ms, so the next cycle is late again (measured: 3 ms periods, 230 Hz).
@@ -98,6 +103,10 @@ class SimHardwareNode(SuiteNode):
         self.server = BoardsServer(self.emulator)
         self.context.on_shutdown(self.server.stop)
         self.server.start()
+        self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
+        self._increases = Increases()
+        self._last_report = (time.monotonic(), self.physics.world.time if self.physics is not None else 0.0)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
 
     def _start_physics(self, params: dict[str, Any]) -> PhysicsActuatorBank:
         """The PyBullet world coupled to the boards (stepped under a lock: PyBullet is not thread-safe), its
@@ -176,6 +185,35 @@ class SimHardwareNode(SuiteNode):
             clock = Clock()  # the sample's simulated time: the physics may have stepped on since it was taken
             to_time_msg(truth.sim_ns, clock.clock)
             self._publish_clock(clock)
+
+    def task_statuses(self) -> list[Status]:
+        """``sim_hardware: physics`` (WARN when the simulation runs slower than SLOW_SIMULATION x real time; ERROR
+        when the physics fails to step) or, without physics, ``sim_hardware: boards``; both name the faults on."""
+        faults = self.emulator.faults
+        values: dict[str, object] = {
+            "drop_rate": faults.drop_rate,
+            "silent_boards": ", ".join(sorted(faults.silent_boards)) or "none",
+        }
+        if self.physics is None:
+            return [task_status("sim_hardware", "boards", Level.OK, "kinematic boards running", values)]
+        wall, sim = time.monotonic(), self.physics.world.time
+        last_wall, last_sim = self._last_report
+        self._last_report = (wall, sim)
+        factor = (sim - last_sim) / (wall - last_wall) if wall > last_wall else 0.0
+        errors = int(self._increases("kinematics_errors", self.physics.counts.kinematics_errors))
+        values.update({"real_time_factor": round(factor, 3), "sim_time_s": round(sim, 3), "new_errors": errors})
+        values["supported"] = self.physics.world.supported
+        if errors:
+            level, text = Level.ERROR, "physics step failed"
+        elif factor < SLOW_SIMULATION:
+            level, text = Level.WARN, "simulation slower than real time"
+        else:
+            level, text = Level.OK, "running"
+        return [task_status("sim_hardware", "physics", level, text, values)]
+
+    def _publish_status(self) -> None:
+        statuses = self.task_statuses()
+        self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=self.get_clock().now().nanoseconds))
 
     def _check_silent_boards(self, names: list[str]) -> Callable[[], None]:
         """Refuse actuator names the robot does not have (a misspelt board would silently stay alive)."""

@@ -20,21 +20,23 @@ PACKAGE_OF_SPEC = {
     "control": "rh5_bringup",
     "sim_hardware": "rh5_bringup",
     "recorder": "rh5_bringup",
+    "state_publisher": "rh5_hyrodyn_mapper",
 }
 
 
 def test_packaged_bringup_starts_the_control_process_by_default() -> None:
     bringup = load_bringup()
     assert [n.name for n in bringup.nodes] == [
-        "recorder", "sim_hardware", "control", "driver", "mapper", "stabilizer", "planner"
+        "recorder", "sim_hardware", "control", "driver", "mapper", "stabilizer", "state_publisher", "planner"
     ]  # fmt: skip
     processes = [(host.name, [n.name for n in hosted]) for host, hosted in bringup.processes()]
     assert processes == [
-        ("recorder", []), ("sim_hardware", []), ("control", ["driver", "mapper", "stabilizer"]), ("planner", [])
+        ("recorder", []), ("sim_hardware", []), ("control", ["driver", "mapper", "stabilizer"]),
+        ("state_publisher", []), ("planner", [])
     ]  # fmt: skip
     separate = replace(bringup, composed=False)
     assert [host.name for host, hosted in separate.processes() if not hosted] == [
-        "recorder", "sim_hardware", "driver", "mapper", "stabilizer", "planner"
+        "recorder", "sim_hardware", "driver", "mapper", "stabilizer", "state_publisher", "planner"
     ]  # fmt: skip
     assert bringup.node_names() == {n.name for n in bringup.nodes} | {"control_streams"}  # the stream publisher
     assert separate.node_names() == bringup.node_names() - {"control", "control_streams"}
@@ -135,7 +137,12 @@ def test_without_leaves_one_node_out_but_never_a_hosted_one() -> None:
     unrecorded = bringup.without("recorder")
     assert "recorder" not in unrecorded.node_names()
     assert unrecorded.node_names() == bringup.node_names() - {"recorder"}
-    assert [spec.name for spec, _ in unrecorded.processes()] == ["sim_hardware", "control", "planner"]
+    assert [spec.name for spec, _ in unrecorded.processes()] == [
+        "sim_hardware",
+        "control",
+        "state_publisher",
+        "planner",
+    ]
     with pytest.raises(ValueError, match="hosted"):
         bringup.without("driver")
     with pytest.raises(KeyError, match="no node"):

@@ -21,6 +21,7 @@ from rh5_hyrodyn_mapper.mapping import RobotMapper
 from rh5_hyrodyn_mapper.model.urdf import generate_urdf
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec, Level, Status, diagnostics_to_msg, time_to_ns
+from rh5_msgs_py.diagnostic_tasks import Increases, task_status
 from rh5_msgs_py.names import ACTUATOR_NAMES, JOINT_NAMES
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
 
@@ -40,12 +41,13 @@ class MapperNode(SuiteNode):
         self.core = MapperCore(
             self._build_mapper(), clamp_to_limits=self.params["clamp_to_limits"], on_reject=self._log_rejection
         )
+        self._increases = Increases()
         self._joint_codec_in = JointStateCodec(JOINT_NAMES, what="joint_commands")
         self._actuator_codec_in = JointStateCodec(ACTUATOR_NAMES, what="actuator_states")
         self.actuator_codec_out = JointStateCodec(ACTUATOR_NAMES)
         self.joint_codec_out = JointStateCodec(JOINT_NAMES)
         if self.params["publish_robot_description"]:
-            self.advertise(interfaces.ROBOT_DESCRIPTION)(String(data=generate_urdf()))
+            self.advertise(interfaces.ROBOT_DESCRIPTION)(String(data=generate_urdf(visuals=True)))
         if not composed:  # composed: the control process's stream publisher sends them
             self.publish_actuator_commands = self.advertise(interfaces.ACTUATOR_COMMANDS)
             self.publish_joint_states = self.advertise(interfaces.JOINT_STATES)
@@ -130,7 +132,31 @@ class MapperNode(SuiteNode):
             values.update({f"latency.{topic}.{k}": round(x, 1) for k, x in window.percentiles_us().items()})
         message = "ok" if level == Level.OK else "commands clamped or rejected since start"
         status = Status("rh5/mapper", level, message, values, hardware_id="rh5")
-        self._publish_diagnostics(diagnostics_to_msg([status], stamp_ns=self.get_clock().now().nanoseconds))
+        statuses = [status, *self.task_statuses()]
+        self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=self.get_clock().now().nanoseconds))
+
+    def task_statuses(self) -> list[Status]:
+        """``mapper: limits`` (WARN while setpoints are clamped) and ``mapper: kinematics`` (ERROR while maps are
+        refused: NaN, unknown names, singular poses), each judged on what happened since the last report."""
+        clamped = sum(self.clamped.values())
+        rejected = sum(self.rejected.values())
+        new_clamps = int(self._increases("clamped", clamped))
+        new_rejections = int(self._increases("rejected", rejected))
+        limits = task_status(
+            "mapper",
+            "limits",
+            Level.WARN if new_clamps else Level.OK,
+            "setpoints clamped to the actuator limits" if new_clamps else "within limits",
+            {"new_clamps": new_clamps, "clamps": clamped},
+        )
+        kinematics = task_status(
+            "mapper",
+            "kinematics",
+            Level.ERROR if new_rejections else Level.OK,
+            "maps refused" if new_rejections else "ok",
+            {"new_rejections": new_rejections, "rejections": rejected},
+        )
+        return [limits, kinematics]
 
     def summary(self) -> dict[str, Any]:
         """Adds rejections, clamping and processing latency to the base summary."""

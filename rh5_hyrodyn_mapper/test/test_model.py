@@ -121,8 +121,10 @@ def test_model_hash_tags_the_urdf_text(tmp_path: Path) -> None:
     params = load_parameters()
     params["links"]["LLKnee_Link"]["mass"] += 0.001
     assert hashlib.sha256(generate_urdf(params).encode()).hexdigest() != model_hash()
-    assert urdf_main(["-o", str(tmp_path / "rh5.urdf")]) == 0
+    assert urdf_main(["-o", str(tmp_path / "rh5.urdf"), "--no-visuals"]) == 0
     assert (tmp_path / "rh5.urdf").read_text() == text
+    assert urdf_main(["-o", str(tmp_path / "rh5_visual.urdf")]) == 0  # for RViz: with the visuals
+    assert (tmp_path / "rh5_visual.urdf").read_text() == generate_urdf(visuals=True)
 
 
 def test_generator_rejects_a_broken_tree() -> None:

@@ -124,6 +124,7 @@ class StabilizerCore:
         self._hold: ReferenceSample | None = None
         self._last_command: Command | None = None
         self._pending_start = False
+        self._start_from_reference = False
         self._hold_request = False
         self._stop_request = False
         self.tracking_error = np.zeros(NUM_JOINTS)
@@ -166,6 +167,35 @@ class StabilizerCore:
                 return False, f"refused: robot not at rest ({JOINT_NAMES[fastest]} at {speed:.3f} rad/s)"
             self._pending_start = True
         return True, "starting: ramp-in to the first trajectory sample"
+
+    def request_play(self, trajectory: PlannedTrajectory, measurement: Measurement | None) -> tuple[bool, str]:
+        """Play ``trajectory`` now (a FollowJointTrajectory goal): as ``load`` + ``request_start``, and also while
+        one is ramped into or played, whose place it takes, ramping in from the current reference."""
+        with self._lock:
+            if self.estopped:
+                return False, "refused: emergency stop is latched in the driver"
+            if measurement is None:
+                return False, "refused: no joint_states received"
+            moving = self.state in (State.RAMP_IN, State.PLAYING) and self._last_command is not None
+            if not moving:
+                fastest = int(np.argmax(np.abs(measurement.velocity)))
+                speed = float(abs(measurement.velocity[fastest]))
+                if speed > self.safety.rest_velocity:
+                    return False, f"refused: robot not at rest ({JOINT_NAMES[fastest]} at {speed:.3f} rad/s)"
+            self.trajectory, self.rejection = trajectory, ""
+            self._pending_start, self._start_from_reference = True, moving
+        self._on_event(f"trajectory to play: {len(trajectory.times)} points, {trajectory.duration:.3f} s")
+        return True, "starting: ramp-in to the first trajectory sample"
+
+    @property
+    def start_pending(self) -> bool:
+        """Whether a requested start waits for the next update."""
+        return self._pending_start
+
+    @property
+    def last_command(self) -> Command | None:
+        """The command of the latest update (its position and velocity are the reference); None before one."""
+        return self._last_command
 
     def request_hold(self) -> tuple[bool, str]:
         """Hold the current reference (from ramp-in or playback)."""
@@ -216,8 +246,7 @@ class StabilizerCore:
             self._stop_request = False
             if self.state in ACTIVE_STATES:
                 self._enter(State.STOPPED, play_ns, "stop requested")
-        if self.state == State.STOPPED or (self.state == State.IDLE and not self._pending_start):
-            self._pending_start = False
+        if self.state in (State.STOPPED, State.IDLE) and not self._pending_start:
             return None
         stale = measurement is None or now_ns - measurement.stamp_ns > self.safety.state_timeout_ns
         if self._pending_start:
@@ -226,9 +255,9 @@ class StabilizerCore:
                 self._on_event("start dropped: joint_states went stale")
             else:
                 first = self.trajectory.sample(0.0)
-                self._ramp = RampIn(
-                    measurement.position.copy(), first.position, self.ramp_max_velocity, self.ramp_max_acceleration
-                )
+                reference = self._last_command if self._start_from_reference else None
+                start = (measurement.position if reference is None else reference.position).copy()
+                self._ramp = RampIn(start, first.position, self.ramp_max_velocity, self.ramp_max_acceleration)
                 self._enter(State.RAMP_IN, play_ns, f"ramp-in over {self._ramp.duration:.2f} s")
         if stale:
             if self._last_command is None:

@@ -3,7 +3,9 @@
 A dedicated loop thread (rh5_msgs_py.realtime.DeadlineLoop) runs StabilizerCore every
 millisecond and publishes ``joint_commands`` in every active state; ROS callbacks only
 validate inputs and hand them over through latest-value slots (rh5_msgs_py.realtime.LatestValue). Services
-``~/start``, ``~/stop`` and ``~/hold`` answer with the reason when they refuse.
+``~/start``, ``~/stop`` and ``~/hold`` answer with the reason when they refuse. Motions come on the latched
+``planned_trajectory`` topic or as goals of the ``~/follow_joint_trajectory`` action
+(rh5_joint_stabilizer.trajectory_action, as joint_trajectory_controller serves it).
 """
 
 from __future__ import annotations
@@ -22,9 +24,11 @@ from std_srvs.srv import Trigger
 from rh5_hyrodyn_mapper.model import joint_limits
 from rh5_joint_stabilizer.balance import AnkleBalanceCorrection, ankle_axes_world
 from rh5_joint_stabilizer.controller import Command, Measurement, SafetyLimits, StabilizerCore, State, load_gains
+from rh5_joint_stabilizer.goal_check import Tolerances
 from rh5_joint_stabilizer.reference import PlannedTrajectory, TrajectoryRejectedError, validate_trajectory
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec, Level, Status, diagnostics_to_msg, joint_trajectory_from_cdr
+from rh5_msgs_py.diagnostic_tasks import task_status
 from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
 from rh5_msgs_py.realtime import DeadlineLoop, LatestValue
@@ -106,6 +110,7 @@ class StabilizerNode(SuiteNode):
         self.create_service(Trigger, interfaces.STOP_SERVICE, self._on_stop)
         self.create_service(Trigger, interfaces.HOLD_SERVICE, self._on_hold)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self.publish_status)
+        self.action = self._action_server()
         if params["trajectory_file"]:
             self._load_file(params["trajectory_file"])
         core = self.core
@@ -119,11 +124,42 @@ class StabilizerNode(SuiteNode):
                 "ramp_max_velocity": lambda v: lambda: setattr(core, "ramp_max_velocity", float(v)),
                 "ramp_max_acceleration": lambda a: lambda: setattr(core, "ramp_max_acceleration", float(a)),
                 "balance_correction": lambda on: lambda: self._set_balance(bool(on)),
+                "path_tolerance_rad": lambda _: None,  # read at each goal
+                "goal_tolerance_rad": lambda _: None,
+                "goal_time_tolerance_s": lambda _: None,
             }
         )
         self.loop: DeadlineLoop | None = None
         if not composed:
             self.loop = self.start_loop(params["rate_hz"], self._tick, "stabilizer-1kHz", params["realtime_priority"])
+
+    def _action_server(self) -> Any:
+        """``~/follow_joint_trajectory``, or None (with a warning) where control_msgs is missing."""
+        try:
+            from rh5_joint_stabilizer.trajectory_action import TrajectoryActionServer  # noqa: PLC0415
+        except ImportError as err:
+            self.get_logger().warning(f"no ~/follow_joint_trajectory: {err} (make venv builds control_msgs)")
+            return None
+
+        def defaults() -> Tolerances:
+            p = self.params
+            return Tolerances.uniform(p["path_tolerance_rad"], p["goal_tolerance_rad"], p["goal_time_tolerance_s"])
+
+        def rejected(reason: str) -> None:
+            self.events.append(f"goal rejected: {reason}")
+            self.publish_status()
+
+        def measured() -> Measurement | None:
+            return self.measurement.try_get()[0]
+
+        return TrajectoryActionServer(
+            self,
+            self.core,
+            measurement=measured,
+            velocity_limits=self.velocity_limits,
+            defaults=defaults,
+            on_rejected=rejected,
+        )
 
     # --- parameters at run time ------------------------------------------------------------------------------------
 
@@ -298,14 +334,43 @@ class StabilizerNode(SuiteNode):
         values.update({f"max_error.{j}": round(float(e), 6) for j, e in zip(JOINT_NAMES, peak, strict=True)})
         if self.core.correction is not None and self.balance is not None:
             values["balance_correction_active"] = self.balance.active
+        if self.action is not None:
+            values.update({f"action.{k}": v for k, v in self.action.counts.items()})
+            values["action.last_result"] = self.action.last_result
+            values["action.goal_rejected"] = self.action.rejection
         level = (
             Level.WARN if self.core.state == State.HOLDING and "requested" not in self.core.last_reason else Level.OK
         )
         if self.loop is not None and self.loop.error is not None:
             level, values["loop_error"] = Level.ERROR, repr(self.loop.error)
         status = Status("rh5/stabilizer", level, self.core.last_reason or self.core.state.value, values, "rh5")
+        statuses = [status, *self.task_statuses(peak)]
         # wall time, also under use_sim_time: every stamp of the suite is on one clock (/clock maps it to sim time)
-        self._publish_diagnostics(diagnostics_to_msg([status], stamp_ns=time.time_ns()))
+        self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=time.time_ns()))
+
+    def task_statuses(self, peak: np.ndarray) -> list[Status]:
+        """``stabilizer: tracking`` (WARN when it holds for a reason other than a request or the end of the motion)
+        and ``stabilizer: trajectory`` (ERROR while the last trajectory or goal offered was rejected)."""
+        core = self.core
+        worst = int(np.argmax(peak))
+        values = {"state": core.state.value, "max_error_rad": round(float(peak[worst]), 6)}
+        values["worst_joint"] = JOINT_NAMES[worst]
+        requested = any(word in core.last_reason for word in ("requested", "finished"))
+        if core.state == State.HOLDING and not requested:
+            tracking = task_status(
+                "stabilizer", "tracking", Level.WARN, "holding", {**values, "reason": core.last_reason}
+            )
+        elif core.state == State.STOPPED and "emergency" in core.last_reason:
+            tracking = task_status("stabilizer", "tracking", Level.ERROR, "stopped by the emergency stop", values)
+        else:
+            tracking = task_status("stabilizer", "tracking", Level.OK, core.state.value, values)
+        rejection = core.rejection or (self.action.rejection if self.action is not None else "")
+        if rejection:
+            trajectory = task_status("stabilizer", "trajectory", Level.ERROR, "rejected", {"reason": rejection})
+        else:
+            loaded = "loaded" if core.trajectory is not None else "none"
+            trajectory = task_status("stabilizer", "trajectory", Level.OK, loaded)
+        return [tracking, trajectory]
 
     def summary(self) -> dict[str, Any]:
         """Adds the state, the loop timing and the recent events to the base summary."""
@@ -317,9 +382,11 @@ class StabilizerNode(SuiteNode):
         }
 
     def destroy_node(self) -> None:
-        """Stop the loop thread before the node goes away."""
+        """Stop the loop thread and the action server before the node goes away."""
         if self.loop is not None:
             self.loop.stop()
+        if self.action is not None:
+            self.action.destroy()
         super().destroy_node()
 
 

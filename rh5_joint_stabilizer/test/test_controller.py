@@ -257,3 +257,40 @@ def test_a_rejected_trajectory_drops_the_previous_one_so_start_cannot_play_it(be
     assert "jump of LLKnee" in reason
     assert core.load(sine_trajectory(bent_pose))[0]  # a good one clears the rejection
     assert core.rejection == ""
+
+
+def test_play_replaces_a_playing_trajectory_and_ramps_from_the_reference(bent_pose: np.ndarray) -> None:
+    """A FollowJointTrajectory goal preempts: the new trajectory starts from the current reference, no jump."""
+    core, plant = make_core(), LagPlant(bent_pose)
+    first = sine_trajectory(bent_pose)
+    assert core.request_play(first, Measurement(plant.q.copy(), plant.v.copy(), 0))[0]
+    commands, now = run(core, plant, 1500, 0)
+    assert core.state == State.PLAYING
+    assert core.trajectory is first
+    reference = core.last_command.position.copy()
+    second = sine_trajectory(bent_pose + 0.05)
+    ok, message = core.request_play(second, Measurement(plant.q.copy(), plant.v.copy(), now))
+    assert ok, message  # also while the robot moves: it follows the reference on
+    assert core.start_pending
+    commands, now = run(core, plant, 1, now)
+    assert core.state == State.RAMP_IN
+    assert core.trajectory is second
+    assert np.max(np.abs(commands[0].position - reference)) < 0.01
+    commands, now = run(core, plant, 3000, now)
+    assert core.state == State.PLAYING
+
+
+def test_play_after_stop_starts_again(bent_pose: np.ndarray) -> None:
+    core, plant = make_core(), LagPlant(bent_pose)
+    assert core.request_play(sine_trajectory(bent_pose), Measurement(plant.q.copy(), plant.v.copy(), 0))[0]
+    _, now = run(core, plant, 100, 0)
+    assert core.request_stop()[0]
+    _, now = run(core, plant, 10, now)
+    assert core.state == State.STOPPED
+    assert core.request_play(sine_trajectory(bent_pose), Measurement(plant.q.copy(), plant.v.copy(), now))[0]
+    _, now = run(core, plant, 10, now)
+    assert core.state in (State.RAMP_IN, State.PLAYING)
+    core.set_estop(True)
+    ok, message = core.request_play(sine_trajectory(bent_pose), Measurement(plant.q.copy(), plant.v.copy(), now))
+    assert not ok
+    assert "emergency stop" in message

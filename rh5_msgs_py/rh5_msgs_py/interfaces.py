@@ -37,6 +37,22 @@ EVENT_QOS: Final = QoSProfile(
 )
 """Low-rate reliable traffic: diagnostics, progress, evaluation data."""
 
+TF_QOS: Final = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+"""/tf, as tf2's transform broadcaster offers it."""
+
+TF_STATIC_QOS: Final = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+"""/tf_static, as tf2's static transform broadcaster offers it (late joiners get the fixed frames)."""
+
 
 class Topic(NamedTuple):
     """A topic of the suite: its name, message type (``pkg/msg/Type``) and QoS."""
@@ -66,6 +82,10 @@ CLOCK: Final = Topic("/clock", "rosgraph_msgs/msg/Clock", STREAM_QOS)
 DRIVER_ESTOP: Final = Topic("driver/estopped", "std_msgs/msg/Bool", LATCHED_QOS)
 """The driver's emergency-stop latch, published on every change (the stabilizer stops while it is set)."""
 DIAGNOSTICS: Final = Topic("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", EVENT_QOS)
+TF: Final = Topic("/tf", "tf2_msgs/msg/TFMessage", TF_QOS)
+"""Every link of the robot and odom -> RH5_Root_Link (state_publisher; tf2_msgs is built by make venv)."""
+TF_STATIC: Final = Topic("/tf_static", "tf2_msgs/msg/TFMessage", TF_STATIC_QOS)
+"""The fixed joints' transforms, once (state_publisher)."""
 
 ALL_TOPICS: Final[tuple[Topic, ...]] = (
     ROBOT_DESCRIPTION,
@@ -84,6 +104,8 @@ ALL_TOPICS: Final[tuple[Topic, ...]] = (
     DRIVER_ESTOP,
     DIAGNOSTICS,
     CLOCK,
+    TF,
+    TF_STATIC,
 )
 """Every topic the suite publishes: what the recorder records by default."""
 
@@ -108,6 +130,7 @@ CONTROL_STREAMS_NODE: Final = "control_streams"
 """The control process's child that publishes its 1 kHz topics (rh5_bringup.stream_publisher)."""
 SIM_HARDWARE_NODE: Final = "sim_hardware"
 RECORDER_NODE: Final = "recorder"
+STATE_PUBLISHER_NODE: Final = "state_publisher"
 
 
 def message_class(type_name: str) -> type:

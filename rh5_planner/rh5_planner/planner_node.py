@@ -46,7 +46,8 @@ from rclpy.task import Future
 from std_srvs.srv import Trigger
 
 from rh5_msgs_py import interfaces
-from rh5_msgs_py.conversions import Level, Status, status_to_msg
+from rh5_msgs_py.conversions import Level, Status, diagnostics_to_msg, status_to_msg
+from rh5_msgs_py.diagnostic_tasks import task_status
 from rh5_msgs_py.names import JOINT_NAMES
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
 from rh5_msgs_py.trajectory_file import SUFFIX, TrajectoryFileError, load_trajectory
@@ -163,6 +164,10 @@ class PlannerNode(SuiteNode):
         }
         self._publish_progress = self.advertise(interfaces.PLANNER_PROGRESS)
         self._publish_lock = threading.Lock()
+        self._solver_status = task_status("planner", "solver", Level.OK, "idle")
+        """``planner: solver`` on /diagnostics: the last plan's outcome (WARN not converged, ERROR failed)."""
+        self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
+        self.create_timer(1.0, lambda: self._publish_diagnostics(diagnostics_to_msg([self._solver_status])))
         self._busy: str | None = None  # motion being planned; read and written on the executor thread only
         self._child: subprocess.Popen[str] | None = None
         self._child_lock = threading.Lock()  # guards _child and _stopping between the worker and destroy_node
@@ -228,6 +233,8 @@ class PlannerNode(SuiteNode):
     def _status(self, level: Level, message: str, values: dict[str, Any]) -> None:
         with self._publish_lock:
             self._publish_progress(status_to_msg(Status(STATUS_NAME, level, message, values)))
+        text = message if level == Level.OK else ("not converged" if level == Level.WARN else "planning failed")
+        self._solver_status = task_status("planner", "solver", level, text, {**values, "detail": message})
 
     # ------------------------------------------------------------------------------------------
     # ~/plan

@@ -441,7 +441,7 @@ def faults(diagnostics: Sequence[DiagnosticRecord], estopped: BoolSeries | None)
         seen.setdefault((source, text), []).append(t)
 
     for d in diagnostics:
-        if d.level >= 1 and not (d.name.endswith("stabilizer") and d.level == 1):  # holding: see transitions
+        if d.level >= 1 and not (d.level == 1 and _reported_elsewhere(d.name)):
             detail = _details(d.values, d.message)
             note(d.name, f"{d.message} ({detail})" if detail else d.message, d.t)
     for tr in stabilizer_transitions(diagnostics):
@@ -452,6 +452,12 @@ def faults(diagnostics: Sequence[DiagnosticRecord], estopped: BoolSeries | None)
             note(estopped.topic, "emergency stop latched", float(t))
     out = [Fault(src, text, min(ts), max(ts), len(ts)) for (src, text), ts in seen.items()]
     return sorted(out, key=lambda f: f.first_t)
+
+
+def _reported_elsewhere(name: str) -> bool:
+    """WARN statuses the report shows in another form: the stabilizer holding (its transitions) and a simulation
+    slower than real time (the loop line's real-time factor)."""
+    return name.endswith("stabilizer") or name.startswith("stabilizer:") or name == "sim_hardware: physics"
 
 
 def _benign(reason: str) -> bool:
