@@ -117,6 +117,7 @@ class DriverNode(SuiteNode, LifecycleNodeMixin):
             self.loop = self.start_loop(params["rate_hz"], self._tick, "driver-1kHz", params["realtime_priority"])
         LifecycleNodeMixin.__init__(self, enable_communication_interface=True)
         self._guard_change_state()
+        self._autostart: Any = None
         if params["autostart"] != "none":
             self._autostart = self.create_timer(0.01, self._start_up)
 
@@ -139,9 +140,13 @@ class DriverNode(SuiteNode, LifecycleNodeMixin):
         service.callback = guarded
 
     def _start_up(self) -> None:
-        """The autostart transitions, once, from the executor (after the node is fully built)."""
+        """The autostart transitions, once, from the executor (after the node is fully built); an ~/enable that
+        comes first runs them before it is answered."""
+        if self._autostart is None:
+            return
         self._autostart.cancel()
         self.destroy_timer(self._autostart)
+        self._autostart = None
         if self.trigger_configure() == TransitionCallbackReturn.SUCCESS and self.params["autostart"] == "activate":
             self.trigger_activate()
 
@@ -239,6 +244,7 @@ class DriverNode(SuiteNode, LifecycleNodeMixin):
         )
 
     def _on_enable(self, request: Any, response: Any) -> Any:
+        self._start_up()  # an enable right after start-up: the node configures itself first (autostart)
         if request.data and not self.link.is_open:
             response.success, response.message = False, "refused: not configured (no link to the boards)"
             return response
