@@ -58,7 +58,8 @@ def _run_control(
 ) -> tuple[list[Any], dict[str, int], str, int]:
     """Start the control process (``prefix`` before its command), watch it for WATCH_S, stop it with SIGINT.
 
-    Returns the rh5/control statuses seen, messages per 1 kHz topic, its stderr and its exit code.
+    Returns the rh5/control and ``control: <task>`` statuses seen (in arrival order), messages per 1 kHz topic, its
+    stderr and its exit code.
     """
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
@@ -84,7 +85,9 @@ def _run_control(
         ros_graph.create_subscription(
             DiagnosticArray,
             interfaces.DIAGNOSTICS.name,
-            lambda m: statuses.extend(s for s in diagnostics_from_msg(m) if s.name == "rh5/control"),
+            lambda m: statuses.extend(
+                s for s in diagnostics_from_msg(m) if s.name == "rh5/control" or s.name.startswith("control: ")
+            ),
             interfaces.EVENT_QOS,
         ),
         *(
@@ -122,7 +125,7 @@ def test_the_cycle_runs_under_sched_fifo_when_granted(
     log_dir = Path(ros_test_environment["ROS_LOG_DIR"]) / "control_granted"
     statuses, counts, stderr, code = _run_control(ros_graph, dict(os.environ), boards, log_dir, [])
     assert code == 0, stderr[-2000:]
-    last = statuses[-1].values
+    last = [s for s in statuses if s.name == "rh5/control"][-1].values
     assert last["loop.realtime"] == "SCHED_FIFO 50, memory locked"
     assert last["loop.realtime_granted"] == "True"
     assert "refused" not in stderr
@@ -140,6 +143,8 @@ def test_a_refused_real_time_request_warns_once_with_the_fix_and_still_runs(
         pytest.skip("setpriv and prlimit (util-linux) are needed to take real-time rights away")
     log_dir = Path(ros_test_environment["ROS_LOG_DIR"]) / "control_refused"
     statuses, counts, stderr, code = _run_control(ros_graph, dict(os.environ), boards, log_dir, NO_RTPRIO)
+    tasks = {s.name: s for s in statuses if s.name.startswith("control: ")}  # the newest of each
+    statuses = [s for s in statuses if s.name == "rh5/control"]
     assert code == 0, stderr[-2000:]
     warnings = [line for line in stderr.splitlines() if "real-time scheduling refused" in line]
     assert len(warnings) == 1, stderr[-2000:]
@@ -151,3 +156,8 @@ def test_a_refused_real_time_request_warns_once_with_the_fix_and_still_runs(
     assert last.level == 1  # WARN: running without real-time scheduling
     assert float(last.values["loop.rate_hz"]) > 200.0  # still runs its cycle (a loaded machine took it to 480 Hz)
     assert min(counts.values()) > 0.05 * 1000 * WATCH_S, counts  # and publishes (at normal priority: fewer)
+    # diagnostic_updater's per-task statuses: WARN exactly when the last second brought misses or drops
+    loop, streams = tasks["control: loop"], tasks["control: streams"]
+    assert (loop.level == 1) == (int(loop.values["new_deadline_misses"]) > 0), loop
+    assert loop.level == 1 or loop.message == "on time"
+    assert (streams.level == 1) == (int(streams.values["new_dropped"]) > 0), streams

@@ -2,7 +2,7 @@
 
 The keys were checked against ros/rosdistro (rosdep/python.yaml, rosdep/base.yaml and jazzy/distribution.yaml):
 ROS packages resolve by their own name; Python libraries by their rosdep key, which for PyPI-only ones ends in
-``-pip``. Libraries without any key (zstandard, mcap) are installed by pip from constraints.txt and named in a
+``-pip``. Libraries without any key (zstandard, mcap, ray) are installed by pip from constraints.txt and named in a
 comment of the package.xml that needs them.
 """
 
@@ -29,7 +29,7 @@ ROSDEP_KEYS = {
     "crocoddyl": "crocoddyl",
 }
 """Python module -> rosdep key, for modules that are not ROS packages of the same name."""
-NO_ROSDEP_KEY = {"zstandard", "mcap"}
+NO_ROSDEP_KEY = {"zstandard", "mcap", "ray"}
 ROS_PACKAGES = {
     "rclpy",
     "launch",
@@ -92,3 +92,4 @@ def test_packages_without_a_key_are_named_where_they_are_used() -> None:
     text = (REPO / "rh5_bringup" / "package.xml").read_text()
     assert "zstandard" in text
     assert "mcap" in text
+    assert "ray" in (REPO / "rh5_planner" / "package.xml").read_text()

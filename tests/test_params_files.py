@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -33,9 +34,24 @@ def test_the_check_fails_on_a_stale_file(tmp_path: Path, capsys: pytest.CaptureF
     assert "mapper.params.yaml" in capsys.readouterr().err
 
 
+def _wait_until_gone(graph: Any, names: set[str], timeout_s: float = 30.0) -> set[str]:
+    """Wait until no node of ``names`` is in the graph (an earlier test's node of the same name may still be, until
+    its exit is seen); returns those still there."""
+    import rclpy
+
+    deadline = time.monotonic() + timeout_s
+    while (present := names & {n for n, ns in graph.get_node_names_and_namespaces() if ns == "/"}) and (
+        time.monotonic() < deadline
+    ):
+        rclpy.spin_once(graph, timeout_sec=0.1)
+    return present
+
+
 @pytest.mark.parametrize("name", NODES)
 def test_every_node_starts_with_its_shipped_params_file(name: str, ros_graph: Any, tmp_path: Path) -> None:
     node = next(n for n in load_bringup().nodes if n.name == name)
+    # else the node of an earlier test would pass for this one, and the SIGINT below would hit it during its imports
+    assert _wait_until_gone(ros_graph, {name, *node.hosts}) == set()
     command = [str(BIN / node.executable), "--ros-args", "--params-file", str(CONFIG_DIR / f"{name}.params.yaml")]
     process = subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:

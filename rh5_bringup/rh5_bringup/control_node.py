@@ -25,6 +25,7 @@ from rh5_hyrodyn_mapper.mapper_node import MapperNode
 from rh5_joint_stabilizer.stabilizer_node import StabilizerNode
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import Level, Status, diagnostics_to_msg
+from rh5_msgs_py.diagnostic_tasks import Increases, task_status
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
 from rh5_msgs_py.realtime import RealtimePublisher, request_realtime
 
@@ -43,6 +44,7 @@ class ControlNode(SuiteNode):
         self.driver, self.mapper, self.stabilizer = driver, mapper, stabilizer
         self.streams = StreamPublisherProcess(self.get_namespace())
         self._streams_closed = False
+        self._increases = Increases()
         self._hosts = {
             topic.name: host for topic, host in zip(STREAMS, (driver, mapper, stabilizer, mapper), strict=True)
         }
@@ -123,7 +125,27 @@ class ControlNode(SuiteNode):
         else:
             level, message = Level.OK, "running"
         status = Status("rh5/control", level, message, values, hardware_id="rh5")
-        self._publish_diagnostics(diagnostics_to_msg([status], stamp_ns=self.get_clock().now().nanoseconds))
+        statuses = [status, *self.task_statuses()]
+        self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=self.get_clock().now().nanoseconds))
+
+    def task_statuses(self) -> list[Status]:
+        """``control: loop`` (ERROR: the cycle died; WARN: deadline misses since the last report) and ``control:
+        streams`` (WARN: samples dropped or the publishing process gone), in diagnostic_updater's layout."""
+        grew, stats = self._increases, self.loop.stats()
+        misses = grew("loop.misses", stats.deadline_misses)
+        if self.loop.error is not None:
+            loop = task_status("control", "loop", Level.ERROR, "the cycle died", {"error": repr(self.loop.error)})
+        else:
+            level, text = (Level.WARN, "deadline misses") if misses > 0 else (Level.OK, "on time")
+            values = {"new_deadline_misses": int(misses), "rate_hz": stats.rate_hz}
+            loop = task_status("control", "loop", level, text, values)
+        dropped = grew("streams.dropped", self.streams.dropped)
+        if not self.streams.alive:
+            streams = task_status("control", "streams", Level.WARN, "publishing process gone: no 1 kHz topics")
+        else:
+            level, text = (Level.WARN, "samples dropped") if dropped > 0 else (Level.OK, "publishing")
+            streams = task_status("control", "streams", level, text, {"new_dropped": int(dropped)})
+        return [loop, streams]
 
     def summary(self) -> dict[str, Any]:
         """Adds the loop timing, latency and publisher counts to the base summary."""
