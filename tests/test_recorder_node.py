@@ -89,7 +89,10 @@ class StreamPublisher:
         self.loop = DeadlineLoop(1000.0, self._tick, "test-streams")
 
     def subscriber_counts(self) -> list[int]:
-        return [p.get_subscription_count() for p in self.publishers]
+        """Matched subscriptions of each publisher: the streams', then the (reliable, volatile) diagnostics' whose
+        first message would be lost if sent before the recorder matched it."""
+        publishers = [*self.publishers, *([self.diagnostics] if self.diagnostics is not None else [])]
+        return [p.get_subscription_count() for p in publishers]
 
     def _tick(self, now_ns: int, _period_ns: int) -> None:
         for k, (publisher, codec) in enumerate(zip(self.publishers, self.codecs, strict=True)):

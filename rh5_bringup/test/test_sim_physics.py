@@ -205,7 +205,8 @@ def test_node_in_physics_mode_answers_the_driver_and_publishes_ground_truth(
     # the physics stepped (how fast is bench/physics.py's: this host ran it at 0.08-0.3 x real time on one day)
     assert summary["physics"]["physics_steps"] > 200
     assert summary["physics"]["supported"] is False
-    assert len(poses) > 50  # 250 Hz for 2 s, best effort
+    # ground truth arrives (250 Hz of simulated time, best effort; at 0.1 x real time that is 50 in these 2 s)
+    assert len(poses) > 10
     assert poses[-1].header.frame_id == "world"
     assert poses[-1].pose.position.z == pytest.approx(robot_model().q_standing[2], abs=0.02)
     assert (answered - heard < 100_000_000).all()  # every board answered the driver within the last 0.1 s
