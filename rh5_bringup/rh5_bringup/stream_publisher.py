@@ -192,6 +192,7 @@ def _publish_forever(record_fd: int, counts_fd: int, node: Any) -> dict[str, int
     names = [topic.name for topic in STREAMS]
     header, values, buffer = _record()
     reported_at = time.monotonic()
+    os.set_blocking(counts_fd, False)  # a report the control process has not read yet is dropped, never waited for
 
     def report() -> None:
         with contextlib.suppress(OSError):
