@@ -172,6 +172,10 @@ def recorded(ros_graph: Any, ros_test_environment: dict[str, str], tmp_path_fact
     run = recorder_run(ros_test_environment, bag, "recorder_sigint", topics, max_bag_duration_s=SPLIT_S)
     with run:
         wait_until_matched(node, streams, before)
+        # Each side matches on its own: until the recorder's readers have matched our writers too, a reliable sample
+        # waits in the writer's KEEP_LAST 10 history, which 100 Hz diagnostics overwrite in 0.1 s (sample 0 was lost
+        # in 2 of 4 CI runs without this).
+        time.sleep(1.0)
         streams.run_for(PUBLISH_S)
         time.sleep(0.3)  # in flight
         crashed = run.exited()
