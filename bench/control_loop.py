@@ -181,6 +181,14 @@ def report(statuses: list[dict[str, str]], args: argparse.Namespace) -> None:
         for stage in ("cpu", "read", "to_joints", "stabilize", "to_actuators", "write"):
             p50, p99 = (values(statuses, f"cycle.{stage}.{k}_us") for k in ("p50", "p99"))
             print(f"    {stage:<14} p50 {float(np.median(p50)):7.1f} us   p99 (worst) {float(p99.max()):7.1f} us")
+        for generation in range(3):  # collections in the cycle's slack (rh5_msgs_py.realtime.GarbageCollection)
+            counts = values(statuses, f"loop.gc{generation}_collections")
+            p50, worst = (values(statuses, f"loop.gc{generation}_{k}_us") for k in ("p50", "max"))
+            if len(counts):
+                print(
+                    f"    gc gen {generation}       p50 {float(np.median(p50)):7.1f} us   max (worst) "
+                    f"{float(worst.max()):7.1f} us   {int(counts[-1] - counts[0])} collections"
+                )
         dropped = values(statuses, "streams.dropped")
         print(f"  {'publisher drops during the run':<40} {int(dropped[-1] - dropped[0]):10d}")
 

@@ -22,9 +22,9 @@ import queue
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Generic, TypeVar
+from typing import ClassVar, Generic, TypeVar
 
 import numpy as np
 
@@ -42,8 +42,10 @@ RTPRIO_FIX = (
     "/etc/security/limits.conf, add the user to the group 'realtime' and log in again (README, 'Real-time'); "
     "or run with CAP_SYS_NICE (e.g. as root)"
 )
-GC_SLACK_NS = 200_000  # collect young garbage only when at least this much of the period is left
-GC_FULL_SLACK_NS = 600_000  # ... and all generations only with this much
+GC_MARGIN_NS = 100_000  # a collection in a cycle's slack must leave this much of it free
+GC_FIRST_COST_NS = (100_000, 300_000, 700_000)  # what each generation's collection is assumed to take until measured
+GC_COST_DECAY = 0.999  # per collection: an expensive collection long ago stops holding a generation back
+GC_OVERDUE = 20  # gen0 collections are forced once this many thresholds of allocations have piled up
 
 
 class LatestValue(Generic[T]):
@@ -114,6 +116,11 @@ class LatencyWindow:
         ns = np.asarray(ns, dtype=np.int64)[-len(self._ns) :]
         self._ns[(self._count + np.arange(len(ns))) % len(self._ns)] = ns
         self._count += len(ns)
+
+    @property
+    def count(self) -> int:
+        """Durations recorded since the start (the window keeps the latest)."""
+        return self._count
 
     def percentiles_us(self) -> dict[str, float]:
         """p50, p99 and max of the window in microseconds (empty window: zeros)."""
@@ -286,19 +293,31 @@ class GarbageCollection:
                 if cls._was_enabled:
                     gc.enable()
 
-    @staticmethod
-    def collect_in_slack(slack_ns: int, window: LatencyWindow) -> None:
-        """Collect the young generations when due (by gc's own thresholds) and ``slack_ns`` is enough; the
-        oldest only when there is more slack (its collection is the long one)."""
+    _cost_ns: ClassVar[list[float]] = list(GC_FIRST_COST_NS)
+    """Per generation, a slowly decaying maximum of its collections' durations in this process."""
+
+    @classmethod
+    def collect_in_slack(cls, slack_ns: int, windows: Sequence[LatencyWindow]) -> None:
+        """Collect, when the collector's thresholds say so, the oldest due generation whose collection is expected
+        to fit in ``slack_ns`` (measured: a full collection here takes 0.4-1 ms even with the start-up heap
+        frozen, a young one tens of us), and time it into ``windows[generation]``. A generation that does not
+        fit waits for a cycle with more slack; young garbage is collected anyway once far overdue."""
         counts, thresholds = gc.get_count(), gc.get_threshold()
-        if counts[0] < thresholds[0] or slack_ns < GC_SLACK_NS:
+        if counts[0] < thresholds[0]:
             return
-        generation = 1 if counts[1] >= thresholds[1] else 0
-        if counts[2] >= thresholds[2] and slack_ns >= GC_FULL_SLACK_NS:
-            generation = 2  # a full collection costs 0.1-0.4 ms here even with the start-up heap frozen
+        due = 2 if counts[2] >= thresholds[2] else 1 if counts[1] >= thresholds[1] else 0
+        fits = [g for g in range(due, -1, -1) if cls._cost_ns[g] + GC_MARGIN_NS <= slack_ns]
+        if fits:
+            generation = fits[0]
+        elif counts[0] >= GC_OVERDUE * thresholds[0]:
+            generation = 0
+        else:
+            return
         start = time.monotonic_ns()
         gc.collect(generation)
-        window.add(time.monotonic_ns() - start)
+        took = time.monotonic_ns() - start
+        cls._cost_ns[generation] = max(float(took), cls._cost_ns[generation] * GC_COST_DECAY)
+        windows[generation].add(took)
 
 
 class LoopThread:
@@ -324,7 +343,7 @@ class LoopThread:
         self.timer = LoopTimer(period_ns)
         self.error: BaseException | None = None
         self.realtime: RealtimeGrant | None = None
-        self.gc_pauses = LatencyWindow(200)
+        self.gc_pauses = tuple(LatencyWindow(200) for _ in range(3))  # per generation
         self._on_realtime = on_realtime
         self._granted = threading.Event()
         self._idle = threading.Event()
@@ -389,7 +408,9 @@ class LoopThread:
         grant = self.realtime
         values["loop.realtime"] = "pending" if grant is None else grant.describe()
         values["loop.realtime_granted"] = bool(grant is not None and grant.granted)
-        values.update({f"loop.gc_{k}": round(v, 1) for k, v in self.gc_pauses.percentiles_us().items()})
+        for generation, window in enumerate(self.gc_pauses):
+            values[f"loop.gc{generation}_collections"] = window.count
+            values.update({f"loop.gc{generation}_{k}": round(v, 1) for k, v in window.percentiles_us().items()})
         return values
 
     def _run(self) -> None:

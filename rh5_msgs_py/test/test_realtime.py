@@ -2,13 +2,22 @@
 
 from __future__ import annotations
 
+import gc
 import itertools
 import threading
 import time
+from collections.abc import Iterator
 
 import pytest
 
-from rh5_msgs_py.realtime import DeadlineLoop, LatestValue, LoopTimer
+from rh5_msgs_py.realtime import (
+    GC_OVERDUE,
+    DeadlineLoop,
+    GarbageCollection,
+    LatencyWindow,
+    LatestValue,
+    LoopTimer,
+)
 
 
 def test_latest_value_keeps_the_newest_and_its_stamp() -> None:
@@ -118,3 +127,54 @@ def test_overrunning_steps_are_counted_and_skipped_not_burst() -> None:
 def test_rate_must_be_positive() -> None:
     with pytest.raises(ValueError, match="rate_hz must be positive"):
         DeadlineLoop(0.0, lambda _now, _period: None)
+
+
+@pytest.fixture
+def collector() -> Iterator[type[GarbageCollection]]:
+    """Automatic collection off (as under a real-time loop) with the per-generation cost estimates restored after."""
+    saved, enabled = list(GarbageCollection._cost_ns), gc.isenabled()
+    gc.disable()
+    try:
+        yield GarbageCollection
+    finally:
+        GarbageCollection._cost_ns[:] = saved
+        if enabled:
+            gc.enable()
+
+
+def _young_garbage(n: int) -> list[list[int]]:
+    return [[k] for k in range(n)]  # tracked containers: each counts as an allocation for generation 0
+
+
+def test_a_collection_runs_only_when_its_measured_cost_fits_the_slack(
+    collector: type[GarbageCollection],
+) -> None:
+    """A young collection costs tens of us; one estimated at 500 us is not started with 300 us of slack
+    (it would overrun the deadline), but is with 700 us, and its measured time then replaces the estimate."""
+    windows = [LatencyWindow(10) for _ in range(3)]
+    gc.collect()
+    keep = _young_garbage(gc.get_threshold()[0] + 10)
+    collector._cost_ns[:] = [500_000.0, 1e9, 1e9]
+    collector.collect_in_slack(300_000, windows)
+    assert [w.count for w in windows] == [0, 0, 0]
+    assert gc.get_count()[0] > gc.get_threshold()[0]
+    collector.collect_in_slack(700_000, windows)
+    assert [w.count for w in windows] == [1, 0, 0]
+    assert gc.get_count()[0] < gc.get_threshold()[0]
+    assert collector._cost_ns[0] < 500_000.0  # measured, decayed from the first guess
+    del keep
+
+
+def test_young_garbage_far_overdue_is_collected_even_without_slack(collector: type[GarbageCollection]) -> None:
+    """Memory must not grow without bound when no cycle ever has the slack: past GC_OVERDUE thresholds the
+    young generation is collected anyway."""
+    windows = [LatencyWindow(10) for _ in range(3)]
+    gc.collect()
+    collector._cost_ns[:] = [1e9, 1e9, 1e9]
+    keep = _young_garbage(gc.get_threshold()[0] * 2)
+    collector.collect_in_slack(0, windows)
+    assert windows[0].count == 0
+    keep += _young_garbage(gc.get_threshold()[0] * GC_OVERDUE)
+    collector.collect_in_slack(0, windows)
+    assert windows[0].count == 1
+    del keep
