@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import socket
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -38,3 +41,42 @@ def _write_joint_trajectory(path: Path, seconds: float, amplitude: float = 0.0) 
 def write_joint_trajectory() -> Callable[..., Path]:
     """``write(path, seconds, amplitude=0.0)``: a joint-sine (or hold) trajectory file for the nodes that read one."""
     return _write_joint_trajectory
+
+
+def _free_udp_port() -> int:
+    """A UDP port on 127.0.0.1 that nothing is bound to right now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+@pytest.fixture(scope="session")
+def free_udp_port() -> Callable[[], int]:
+    """``free_udp_port()``: a free UDP port on 127.0.0.1 for the simulated boards to listen on."""
+    return _free_udp_port
+
+
+@pytest.fixture(scope="session")
+def boards_and_driver(
+    ros_graph: Any, ros_test_environment: dict[str, str]
+) -> Callable[..., AbstractContextManager[Any]]:
+    """``with boards_and_driver(log_name, **driver_parameters) as run``: the sim_hardware node on a free port and a
+    stand-alone driver node linked to it (0.2 s silence and 0.5 s command rules unless given), both in the
+    graph; on leaving, both must have exited cleanly."""
+    from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
+
+    @contextmanager
+    def run(log_name: str, **driver_parameters: Any) -> Iterator[SuiteRun]:
+        port = _free_udp_port()
+        driver = {"router_port": port, "board_silence_timeout_s": 0.2, "command_timeout_s": 0.5, **driver_parameters}
+        specs = (
+            NodeSpec("sim_hardware", "rh5_bringup", "sim_hardware_node", {"listen_port": port}),
+            NodeSpec("driver", "rh5_bringup", "driver_node", driver),
+        )
+        log_dir = Path(ros_test_environment["ROS_LOG_DIR"]) / log_name
+        with SuiteRun(Bringup("", specs), log_dir, int(ros_test_environment["ROS_DOMAIN_ID"])) as suite:
+            assert wait_for_nodes(ros_graph, {"sim_hardware", "driver"}) == set()
+            yield suite
+        assert [p.process.returncode for p in suite.processes] == [0, 0]
+
+    return run

@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import os
 import shutil
-import socket
 import subprocess
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -36,16 +35,10 @@ NO_RTPRIO = ["setpriv", "--inh-caps=-sys_nice", "--bounding-set=-sys_nice", "--"
 WATCH_S = 4.0
 
 
-def _free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
-
-
 @pytest.fixture(scope="module")
-def boards(ros_graph: Any, ros_test_environment: dict[str, str]) -> Iterator[int]:
+def boards(ros_graph: Any, ros_test_environment: dict[str, str], free_udp_port: Callable[[], int]) -> Iterator[int]:
     """The sim_hardware node (kinematic) on a free UDP port."""
-    port = _free_udp_port()
+    port = free_udp_port()
     spec = NodeSpec("sim_hardware", "rh5_bringup", "sim_hardware_node", {"listen_port": port})
     log_dir = Path(ros_test_environment["ROS_LOG_DIR"]) / "control_boards"
     with SuiteRun(Bringup("", (spec,)), log_dir, int(ros_test_environment["ROS_DOMAIN_ID"])):

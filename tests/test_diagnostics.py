@@ -7,15 +7,13 @@ the per-component statuses: a silent board is ERROR, deadline misses are WARN, t
 
 from __future__ import annotations
 
-import socket
 import time
-from collections.abc import Iterator
-from pathlib import Path
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager
 from typing import Any
 
 import pytest
 
-from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import Level, diagnostics_from_msg
 from rh5_msgs_py.names import ACTUATOR_NAMES
@@ -23,12 +21,6 @@ from rh5_msgs_py.names import ACTUATOR_NAMES
 pytestmark = pytest.mark.ros
 
 SILENT = "LLKnee_Act1"
-
-
-def _free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
 
 
 class Statuses:
@@ -60,23 +52,10 @@ class Statuses:
 
 
 @pytest.fixture(scope="module")
-def suite(ros_graph: Any, ros_test_environment: dict[str, str]) -> Iterator[Statuses]:
-    port = _free_udp_port()
-    specs = (
-        NodeSpec("sim_hardware", "rh5_bringup", "sim_hardware_node", {"listen_port": port}),
-        NodeSpec(
-            "driver",
-            "rh5_bringup",
-            "driver_node",
-            {"router_port": port, "rate_hz": 5000.0, "board_silence_timeout_s": 0.2, "command_timeout_s": 0.5},
-        ),
-    )
+def suite(ros_graph: Any, boards_and_driver: Callable[..., AbstractContextManager[Any]]) -> Iterator[Statuses]:
     statuses = Statuses(ros_graph)
-    log_dir = Path(ros_test_environment["ROS_LOG_DIR"]) / "diagnostics"
-    with SuiteRun(Bringup("", specs), log_dir, int(ros_test_environment["ROS_DOMAIN_ID"])) as run:
-        assert wait_for_nodes(ros_graph, {"sim_hardware", "driver"}) == set()
+    with boards_and_driver("diagnostics", rate_hz=5000.0):
         yield statuses
-    assert [p.process.returncode for p in run.processes] == [0, 0]
 
 
 def test_every_board_has_its_own_status_and_answers(suite: Statuses) -> None:

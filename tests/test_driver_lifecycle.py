@@ -6,24 +6,16 @@ state does not have, which rclpy itself would let end the process: rclpy#1209).
 
 from __future__ import annotations
 
-import socket
 import time
-from collections.abc import Iterator
-from pathlib import Path
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager
 from typing import Any
 
 import pytest
 
 from rh5_bringup.cli import call_set_bool, call_trigger
-from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 
 pytestmark = pytest.mark.ros
-
-
-def _free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
 
 
 class Manager:
@@ -61,23 +53,10 @@ class Manager:
 
 
 @pytest.fixture(scope="module")
-def manager(ros_graph: Any, ros_test_environment: dict[str, str]) -> Iterator[Manager]:
-    port = _free_udp_port()
-    specs = (
-        NodeSpec("sim_hardware", "rh5_bringup", "sim_hardware_node", {"listen_port": port}),
-        NodeSpec(
-            "driver",
-            "rh5_bringup",
-            "driver_node",
-            {"router_port": port, "autostart": "none", "board_silence_timeout_s": 0.2, "command_timeout_s": 0.5},
-        ),
-    )
-    log_dir = Path(ros_test_environment["ROS_LOG_DIR"]) / "driver_lifecycle"
-    with SuiteRun(Bringup("", specs), log_dir, int(ros_test_environment["ROS_DOMAIN_ID"])) as run:
-        assert wait_for_nodes(ros_graph, {"sim_hardware", "driver"}) == set()
+def manager(ros_graph: Any, boards_and_driver: Callable[..., AbstractContextManager[Any]]) -> Iterator[Manager]:
+    with boards_and_driver("driver_lifecycle", autostart="none") as run:
         yield Manager(ros_graph)
         assert run.exited() == []
-    assert [p.process.returncode for p in run.processes] == [0, 0]
     assert "Traceback" not in run.processes[1].stderr_path.read_text()
 
 

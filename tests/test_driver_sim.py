@@ -7,9 +7,8 @@ nodes as processes, driven through their ROS interface.
 
 from __future__ import annotations
 
-import socket
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -35,12 +34,6 @@ LIMITS = actuator_limits()
 CENTRE = sine_centre(robot_mapper().to_actuators(np.zeros(NUM_JOINTS)).position, LIMITS)
 
 
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
-
-
 def set_parameters(node: Any, target: str, **values: Any) -> None:
     """Set parameters of another node through its SetParameters service."""
     import rclpy
@@ -61,7 +54,9 @@ def set_parameters(node: Any, target: str, **values: Any) -> None:
 
 
 @pytest.fixture(scope="module")
-def boards(ros_graph: Any, ros_test_environment: dict[str, str]) -> Iterator[tuple[int, SuiteRun]]:
+def boards(
+    ros_graph: Any, ros_test_environment: dict[str, str], free_udp_port: Callable[[], int]
+) -> Iterator[tuple[int, SuiteRun]]:
     """The sim_hardware node listening on a free UDP port."""
     port = free_udp_port()
     spec = NodeSpec("sim_hardware", "rh5_bringup", "sim_hardware_node", {"listen_port": port})

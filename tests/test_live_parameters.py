@@ -4,9 +4,9 @@ then ignored). Real node processes, driven through their ROS parameter services.
 
 from __future__ import annotations
 
-import socket
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager
 from pathlib import Path
 from typing import Any
 
@@ -24,12 +24,6 @@ from rh5_msgs_py.realtime import DeadlineLoop
 pytestmark = pytest.mark.ros
 
 STANDING = robot_mapper().to_actuators(np.zeros(NUM_JOINTS)).position
-
-
-def _free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
 
 
 def _set(node: Any, target: str, **values: Any) -> list[tuple[bool, str]]:
@@ -109,26 +103,12 @@ def log_dir(ros_test_environment: dict[str, str], request: pytest.FixtureRequest
 
 @pytest.fixture
 def driver_and_boards(
-    ros_graph: Any, ros_test_environment: dict[str, str], log_dir: Path
+    ros_graph: Any, boards_and_driver: Callable[..., AbstractContextManager[Any]], request: pytest.FixtureRequest
 ) -> Iterator[tuple[SuiteRun, Observer]]:
     """sim_hardware and the driver (command timeout 1 s), actuator_commands at 20 Hz from this process."""
-    port = _free_udp_port()
-    bringup = Bringup(
-        "",
-        (
-            NodeSpec("sim_hardware", "rh5_bringup", "sim_hardware_node", {"listen_port": port}),
-            NodeSpec(
-                "driver",
-                "rh5_bringup",
-                "driver_node",
-                {"router_port": port, "command_timeout_s": 1.0, "board_silence_timeout_s": 0.5},
-            ),
-        ),
-    )
     observer = Observer(ros_graph, interfaces.ACTUATOR_COMMANDS, 20.0, [STANDING])
     try:
-        with SuiteRun(bringup, log_dir, int(ros_test_environment["ROS_DOMAIN_ID"])) as run:
-            assert wait_for_nodes(ros_graph, {"sim_hardware", "driver"}) == set()
+        with boards_and_driver(request.node.name, command_timeout_s=1.0, board_silence_timeout_s=0.5) as run:
             assert call_set_bool(ros_graph, "/driver/enable", True)[0]
             yield run, observer
     finally:
