@@ -9,6 +9,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -129,3 +130,78 @@ def test_playback_times_out_on_simulated_time_or_a_stalled_simulation() -> None:
     monitor.sim_time_s = None  # kinematic mode: wall time
     assert monitor.timed_out(now - 11.0, None, budget_s=10.0)
     assert not monitor.timed_out(now - 9.0, None, budget_s=10.0)
+
+
+def _stamped_records(bag: Path, topics: dict[str, str]) -> dict[str, Any]:
+    """Per topic (name -> message type), (log time, publish time, header stamp) rows in ns, read from the MCAP file
+    by the mcap library itself (rosbags gives no publish times); /clock's 'stamp' is the time it carries."""
+    import numpy as np
+    from mcap.reader import make_reader
+    from rosbags.typesys import Stores, get_typestore
+
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    rows: dict[str, list[tuple[int, int, int]]] = {topic: [] for topic in topics}
+    for path in sorted(bag.glob("*.mcap")):
+        with path.open("rb") as stream:
+            for _, channel, message in make_reader(stream).iter_messages(topics=list(topics)):
+                msg = typestore.deserialize_cdr(message.data, topics[channel.topic])
+                if channel.topic == "/clock":
+                    stamp = msg.clock
+                elif channel.topic == "/tf":
+                    stamp = msg.transforms[0].header.stamp
+                else:
+                    stamp = msg.header.stamp
+                rows[channel.topic].append((message.log_time, message.publish_time, stamp.sec * 10**9 + stamp.nanosec))
+    return {topic: np.array(r, dtype=np.int64).reshape(-1, 3) for topic, r in rows.items()}
+
+
+def test_stamps_and_the_bag_run_on_the_simulations_clock(
+    experiment: tuple[subprocess.CompletedProcess[str], Path],
+) -> None:
+    """Under use_sim_time (the physics simulation publishes /clock) every header stamp and the bag's log times are
+    simulated time: the 1 kHz streams carry the simulated boards' clock (their sample's time, so at most one
+    /clock period of 4 ms ahead of the /clock published before them, and behind it by the boards' few ms of
+    lag), the ground truth the time of its sample, /tf the joint states' stamp, and the recorder logs on
+    /clock. Publish times stay on the wall clock: the report measures the loops' stream rates on them."""
+    import numpy as np
+
+    result, _ = experiment
+    bag = _path_after("bag", result.stdout)
+    records = _stamped_records(
+        bag,
+        {
+            "/clock": "rosgraph_msgs/msg/Clock",
+            "/joint_states": "sensor_msgs/msg/JointState",
+            "/joint_commands": "sensor_msgs/msg/JointState",
+            "/actuator_states": "sensor_msgs/msg/JointState",
+            "/sim/base_pose": "geometry_msgs/msg/PoseStamped",
+            "/tf": "tf2_msgs/msg/TFMessage",
+            "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
+        },
+    )
+    clock = records["/clock"]
+    simulated_end = clock[-1, 2]
+    assert 2.3e9 < simulated_end < 120e9  # simulated seconds, not the wall clock's 1.8e18 ns
+    assert np.median(np.abs(clock[:, 0] - clock[:, 2])) < 50e6, "the bag logs /clock on the simulation's clock"
+    wall_now = time.time_ns()
+    assert (np.abs(clock[:, 1] - wall_now) < 3600e9).all(), "publish times are wall-clock times"
+    for topic in ("/joint_states", "/joint_commands", "/actuator_states"):
+        rows = records[topic]
+        assert len(rows) > 1000, topic
+        before = np.searchsorted(clock[:, 1], rows[:, 1]) - 1
+        known = before >= 0
+        ahead_ms = (rows[known, 2] - clock[before[known], 2]) / 1e6
+        low, high = np.percentile(ahead_ms, [1, 99])
+        assert low > -20.0, (topic, low, high)
+        assert high < 20.0, (topic, low, high)
+        assert np.median(np.abs(rows[:, 0] - rows[:, 2])) < 50e6, (topic, "logged on the simulation's clock")
+    assert set(records["/sim/base_pose"][:, 2]) <= set(clock[:, 2]), "ground truth stamped with its sample's time"
+    # /tf carries the stamp of the joint states it was computed from (some of which the recording dropped)
+    tf, states = records["/tf"][:, 2], np.sort(records["/joint_states"][:, 2])
+    nearest = np.minimum(
+        np.abs(states[np.clip(np.searchsorted(states, tf), 0, len(states) - 1)] - tf),
+        np.abs(states[np.clip(np.searchsorted(states, tf) - 1, 0, len(states) - 1)] - tf),
+    )
+    assert np.percentile(nearest, 99) <= 5e6, "/tf stamped with the joint states' (simulated) stamp"
+    diagnostics = records["/diagnostics"][:, 2]
+    assert (diagnostics <= simulated_end + 1e9).all(), "every node stamps its reports on the simulation's clock"

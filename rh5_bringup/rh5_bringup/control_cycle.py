@@ -38,7 +38,7 @@ class CycleSample(NamedTuple):
     """What one cycle measured and sent, for the topics (position, velocity, effort each; None: not this cycle)."""
 
     stamp_ns: int
-    """Wall time of the cycle (the stamp of every message it produces)."""
+    """The stamp of every message the cycle produces: wall time, or the boards' (simulated) time under use_sim_time."""
     actuator_states: Triple | None
     joint_states: Triple | None
     joint_commands: Triple | None
@@ -65,6 +65,7 @@ class ControlCycle:
         estop_to_stabilizer: Callable[[bool], None],
         state_changed: Callable[[], bool] = lambda: False,
         hand_off: Callable[[CycleSample], bool] | None = None,
+        stamp: Callable[[], int] = time.time_ns,
     ) -> None:
         self.driver = driver
         self.mapper = mapper
@@ -72,6 +73,8 @@ class ControlCycle:
         self._estop_to_stabilizer = estop_to_stabilizer
         self._state_changed = state_changed
         self._hand_off = hand_off
+        self._stamp = stamp
+        """The stamp of the cycle's messages: wall time, or the simulation's time under use_sim_time."""
         self.telemetry_to_command = LatencyWindow()
         """From the read that took the telemetry to the hand-over of the commands computed from it (ns)."""
         self.compute = LatencyWindow()
@@ -140,7 +143,7 @@ class ControlCycle:
         if self._hand_off is not None:
             self._hand_off(
                 CycleSample(
-                    time.time_ns(),
+                    self._stamp(),
                     actuator_states,
                     joint_states,
                     joint_commands,

@@ -16,6 +16,7 @@ telemetry-to-command latency, cycle duration (wall and CPU, per step) and the st
 
 from __future__ import annotations
 
+import time
 from typing import Any, Final
 
 from rh5_bringup.control_cycle import ControlCycle, CycleSample
@@ -56,9 +57,10 @@ class ControlNode(SuiteNode):
             estop_to_stabilizer=stabilizer.core.set_estop,
             state_changed=lambda: stabilizer.state_changed,
             hand_off=self._hand_off,
+            stamp=self._simulated_stamp if self.sim_time else time.time_ns,
         )
         self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
-        self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
+        self.create_wall_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
         params = self.params
         for node in (self, driver, mapper, stabilizer):
             node.status_gate = self._wait_for_status_slack
@@ -78,6 +80,11 @@ class ControlNode(SuiteNode):
             )
         self.loop = self.start_loop(params["rate_hz"], self.cycle.step, "control-1kHz", params["realtime_priority"])
         self.publisher.start()  # after the loop exists: it waits for the loop's slack
+
+    def _simulated_stamp(self) -> int:
+        """Under use_sim_time the streams carry the simulation's time, as /clock does: the simulated boards count it
+        in their telemetry (board_time_us), so each sample is stamped with when it was measured."""
+        return self.driver.core.board_time_ns
 
     def _wait_for_status_slack(self) -> None:
         self.loop.wait_for_slack(STATUS_SLACK_NS)

@@ -127,6 +127,8 @@ class DriverCore:
         self.latency = LatencyWindow()
         self.read_ns = 0
         self.frames_read = 0
+        self.board_time_ns = 0
+        """The boards' clock in their newest telemetry (the simulated boards count the simulation's time)."""
 
     # --- requests ----------------------------------------------------------------------------------------------------
 
@@ -291,6 +293,7 @@ class DriverCore:
         )
         self.heard_ns[boards] = now_ns
         self.heard_cycle[boards] = counts["cycles"]
+        self.board_time_ns = max(self.board_time_ns, int(telemetry.board_time_us.max()) * 1000)
         sequence = telemetry.sequence.astype(np.int64)
         sent_ns = self._sent_ns[sequence % len(self._sent_ns)]
         echo = (sent_ns != 0) & (sequence != self._echoed[boards])

@@ -103,7 +103,7 @@ class DriverNode(SuiteNode, LifecycleNodeMixin):
         self.create_service(SetBool, interfaces.ENABLE_SERVICE, self._on_enable)
         self.create_service(Trigger, interfaces.ESTOP_SERVICE, self._on_estop)
         self.create_service(Trigger, interfaces.RESET_ESTOP_SERVICE, self._on_reset_estop)
-        self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
+        self.create_wall_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
         self._increases = Increases()
         core = self.core
         self.apply_live(
@@ -119,7 +119,7 @@ class DriverNode(SuiteNode, LifecycleNodeMixin):
         self._guard_change_state()
         self._autostart: Any = None
         if params["autostart"] != "none":
-            self._autostart = self.create_timer(0.01, self._start_up)
+            self._autostart = self.create_wall_timer(0.01, self._start_up)
 
     # --- lifecycle -------------------------------------------------------------------------------------------------
 
@@ -239,8 +239,10 @@ class DriverNode(SuiteNode, LifecycleNodeMixin):
         readings = self.core.cycle(now_ns, period_ns)
         if not self.core.all_heard:
             return  # no actuator_states until every board has reported once (no made-up zeros downstream)
+        # under use_sim_time stamped with the simulated boards' clock, the simulation's time (as /clock)
+        stamp_ns = self.core.board_time_ns if self.sim_time else time.time_ns()
         self.publish_states(
-            self.state_codec.encode(readings.position, readings.velocity, readings.effort, stamp_ns=time.time_ns())
+            self.state_codec.encode(readings.position, readings.velocity, readings.effort, stamp_ns=stamp_ns)
         )
 
     def _on_enable(self, request: Any, response: Any) -> Any:

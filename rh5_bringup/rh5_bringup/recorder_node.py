@@ -121,7 +121,9 @@ class RecorderNode(SuiteNode):
         self._taker.start()
         self._increases = Increases()
         self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
-        self.create_timer(1.0, lambda: self._publish_diagnostics(diagnostics_to_msg(self.task_statuses())))
+        self.create_wall_timer(
+            1.0, lambda: self._publish_diagnostics(diagnostics_to_msg(self.task_statuses(), self.stamp_ns()))
+        )
         self.get_logger().info(f"recording {len(topics)} topics to {self.bag_path}")
 
     def _record(self, topic: Topic, depth: int) -> None:
@@ -142,7 +144,10 @@ class RecorderNode(SuiteNode):
         """Count and queue one taken message (taker thread)."""
         self.seen[self._names[topic_id]] += 1
         sequence = info["publication_sequence_number"] or 0
-        self._writer.try_put(topic_id, info["received_timestamp"], info["source_timestamp"], sequence, data)
+        # as rosbag2 records: the log time on the recorder's clock (the simulation's under use_sim_time), the
+        # publish time as the sender's middleware stamped it (wall time)
+        log_ns = self.stamp_ns() if self.sim_time else info["received_timestamp"]
+        self._writer.try_put(topic_id, log_ns, info["source_timestamp"], sequence, data)
 
     def task_statuses(self) -> list[Status]:
         """``recorder: bag``: ERROR when writing or taking failed, WARN when messages were dropped since the last

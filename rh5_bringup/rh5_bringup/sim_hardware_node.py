@@ -106,7 +106,7 @@ class SimHardwareNode(SuiteNode):
         self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
         self._increases = Increases()
         self._last_report = (time.monotonic(), self.physics.world.time if self.physics is not None else 0.0)
-        self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
+        self.create_wall_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
 
     def _start_physics(self, params: dict[str, Any]) -> PhysicsActuatorBank:
         """The PyBullet world coupled to the boards (stepped under a lock: PyBullet is not thread-safe), its
@@ -138,7 +138,7 @@ class SimHardwareNode(SuiteNode):
         physics.ground_truth_every = max(1, round(1.0 / (params["ground_truth_rate_hz"] * physics.world.time_step)))
         physics.snapshot()
         self._ground_truth_version = 0  # of the last sample published
-        self.create_timer(1.0 / params["ground_truth_rate_hz"], self._publish_ground_truth)
+        self.create_wall_timer(1.0 / params["ground_truth_rate_hz"], self._publish_ground_truth)
         self.get_logger().info(
             f"physics: {physics.world.total_mass:.2f} kg, friction {params['friction_coefficient']}, "
             f"support {'on' if params['support'] else 'off'}"
@@ -168,7 +168,8 @@ class SimHardwareNode(SuiteNode):
             return
         self._ground_truth_version = version
         pose, wrenches = truth.base, truth.wrenches
-        now_ns = self.get_clock().now().nanoseconds
+        # publishing /clock, the simulation's time is the clock: each sample carries the time it was taken at
+        now_ns = truth.sim_ns if self._publish_clock is not None else self.get_clock().now().nanoseconds
         msg = PoseStamped()
         to_time_msg(now_ns, msg.header.stamp)
         msg.header.frame_id = "world"

@@ -55,7 +55,7 @@ class MapperNode(SuiteNode):
         if not composed:
             self.subscribe_stream(interfaces.JOINT_COMMANDS, self._on_joint_commands)
             self.subscribe_stream(interfaces.ACTUATOR_STATES, self._on_actuator_states)
-        self.create_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
+        self.create_wall_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
         core = self.core
         self.apply_live(  # the next map uses the new setting; the loop never waits for it
             {

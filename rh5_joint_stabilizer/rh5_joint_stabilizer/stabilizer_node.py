@@ -109,7 +109,7 @@ class StabilizerNode(SuiteNode):
         self.create_service(Trigger, interfaces.START_SERVICE, self._on_start)
         self.create_service(Trigger, interfaces.STOP_SERVICE, self._on_stop)
         self.create_service(Trigger, interfaces.HOLD_SERVICE, self._on_hold)
-        self.create_timer(DIAGNOSTICS_PERIOD_S, self.publish_status)
+        self.create_wall_timer(DIAGNOSTICS_PERIOD_S, self.publish_status)
         self.action = self._action_server()
         if params["trajectory_file"]:
             self._load_file(params["trajectory_file"])
@@ -312,7 +312,12 @@ class StabilizerNode(SuiteNode):
             self.publish_status()
         if command is not None:
             self.publish_commands(
-                self.command_codec.encode(command.position, command.velocity, command.effort, stamp_ns=time.time_ns())
+                self.command_codec.encode(
+                    command.position,
+                    command.velocity,
+                    command.effort,
+                    stamp_ns=self.stamp_ns() if self.sim_time else time.time_ns(),
+                )
             )
 
     # --- reporting ---------------------------------------------------------------------------------------------------
@@ -346,7 +351,7 @@ class StabilizerNode(SuiteNode):
         status = Status("rh5/stabilizer", level, self.core.last_reason or self.core.state.value, values, "rh5")
         statuses = [status, *self.task_statuses(peak)]
         # wall time, also under use_sim_time: every stamp of the suite is on one clock (/clock maps it to sim time)
-        self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=time.time_ns()))
+        self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=self.stamp_ns()))
 
     def task_statuses(self, peak: np.ndarray) -> list[Status]:
         """``stabilizer: tracking`` (WARN when it holds for a reason other than a request or the end of the motion)

@@ -16,10 +16,12 @@ from typing import Any
 import rclpy
 from rcl_interfaces.msg import SetParametersResult
 from rclpy._rclpy_pybind11 import RCLError
+from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.subscription import Subscription
+from rclpy.timer import Timer
 
 from rh5_msgs_py.interfaces import Topic, message_class
 from rh5_msgs_py.parameters import declare_parameters, load_spec, parameter_values
@@ -43,6 +45,9 @@ class SuiteNode(Node):
         self.seen: Counter[str] = Counter()
         self.sent: Counter[str] = Counter()
         self._streams: StreamThread | None = None
+        self._steady_clock: Clock | None = None
+        self.sim_time = bool(self.get_parameter("use_sim_time").value)
+        """Whether the node runs on the simulation's clock (/clock): its messages are stamped in simulated time."""
         self.appliers: dict[str, Applier] | None = None
         self.status_gate: Callable[[], object] = lambda: None
         """Called before the node builds and publishes its /diagnostics status: a real-time loop of the process
@@ -119,6 +124,17 @@ class SuiteNode(Node):
             callback(msg)
 
         return self._streams.subscribe(topic, on_message)
+
+    def create_wall_timer(self, period_s: float, callback: Callable[[], None]) -> Timer:
+        """A timer on the steady clock: reports and polling keep their wall-clock rate under ``use_sim_time``
+        (on the node's clock a simulation at 0.08 x real time would make a 1 s report come every 12 s)."""
+        if self._steady_clock is None:
+            self._steady_clock = Clock(clock_type=ClockType.STEADY_TIME)
+        return self.create_timer(period_s, callback, clock=self._steady_clock)
+
+    def stamp_ns(self) -> int:
+        """Now on the node's clock (the simulation's under ``use_sim_time``): the stamp of what it publishes."""
+        return self.get_clock().now().nanoseconds
 
     def start_loop(self, rate_hz: float, step: Callable[[int, int], None], name: str, priority: int) -> DeadlineLoop:
         """Start the node's 1 kHz loop: SCHED_FIFO at ``priority`` if granted (the grant logged, a refusal warned

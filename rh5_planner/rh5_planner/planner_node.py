@@ -167,7 +167,9 @@ class PlannerNode(SuiteNode):
         self._solver_status = task_status("planner", "solver", Level.OK, "idle")
         """``planner: solver`` on /diagnostics: the last plan's outcome (WARN not converged, ERROR failed)."""
         self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
-        self.create_timer(1.0, lambda: self._publish_diagnostics(diagnostics_to_msg([self._solver_status])))
+        self.create_wall_timer(
+            1.0, lambda: self._publish_diagnostics(diagnostics_to_msg([self._solver_status], self.stamp_ns()))
+        )
         self._busy: str | None = None  # motion being planned; read and written on the executor thread only
         self._child: subprocess.Popen[str] | None = None
         self._child_lock = threading.Lock()  # guards _child and _stopping between the worker and destroy_node

@@ -9,12 +9,14 @@ in batches by rh5_bringup.report.cdr; the few other messages go through rosbags'
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Final
 
 import numpy as np
+import yaml
+from mcap.reader import make_reader
 from numpy.typing import NDArray
 from rosbags.highlevel import AnyReader, AnyReaderError
 
@@ -27,6 +29,8 @@ BATCH: Final = 8192
 """Messages decoded per batch: bounds the raw bytes held in memory (~11 MB for 32-joint JointStates)."""
 STAMP_TOLERANCE_NS: Final = 5_000_000_000
 """Header stamps within this of the receive times (median) are on the recorder's clock and are used."""
+SIM_CLOCK_TOLERANCE_NS: Final = 1_000_000_000
+"""/clock logged within this of the time it carries (median): the bag was recorded on simulated time."""
 
 
 class ReportError(Exception):
@@ -49,7 +53,9 @@ class JointSeries:
     effort: FloatArray
     time_source: str
     wall_t: FloatArray | None = None
-    """The times on the recorder's (wall) clock where ``t`` was moved onto simulated time, else None."""
+    """The times on the wall clock the loops ran on where ``t`` is simulated time, else None."""
+    publish_ns: NDArray[np.int64] | None = field(default=None, repr=False)
+    """When the sender's middleware published each message (the bag's publish times: wall clock), if known."""
 
     def index(self, name: str) -> int | None:
         """Column of ``name`` (None if the stream never carried it)."""
@@ -67,6 +73,8 @@ class PoseSeries:
     time_source: str
     wall_t: FloatArray | None = None
     """As JointSeries.wall_t."""
+    publish_ns: NDArray[np.int64] | None = field(default=None, repr=False)
+    """As JointSeries.publish_ns."""
 
 
 @dataclass(frozen=True)
@@ -188,18 +196,27 @@ class _Batches:
         self._decode = decode
         self._raws: list[bytes] = []
         self._log: list[int] = []
+        self._publish: list[int] = []
         self.decoded: list[tuple[Any, NDArray[np.int64]]] = []
+        self.publish_ns: list[NDArray[np.int64]] = []
 
-    def add(self, raw: bytes, log_ns: int) -> None:
+    def add(self, raw: bytes, log_ns: int, publish_ns: int) -> None:
         self._raws.append(raw)
         self._log.append(log_ns)
+        self._publish.append(publish_ns)
         if len(self._raws) >= BATCH:
             self.flush()
 
     def flush(self) -> None:
         if self._raws:
             self.decoded.append((self._decode(self._raws), np.asarray(self._log, dtype=np.int64)))
-            self._raws, self._log = [], []
+            self.publish_ns.append(np.asarray(self._publish, dtype=np.int64))
+            self._raws, self._log, self._publish = [], [], []
+
+    def publish_times(self, order: NDArray[np.intp] | None) -> NDArray[np.int64]:
+        """The publish times of every message added, in ``order`` (None: as added)."""
+        ns = np.concatenate(self.publish_ns) if self.publish_ns else np.zeros(0, dtype=np.int64)
+        return ns if order is None else ns[order]
 
 
 def _column_order(blocks: Iterable[Sequence[str]], contract: Sequence[str]) -> tuple[str, ...]:
@@ -239,6 +256,7 @@ def _joint_series(topic: str, batches: _Batches, contract: Sequence[str], origin
                     out[rows[:, None], cols[None, :]] = values
         start += len(log)
     ns, source = pick_times(stamps, log_ns)
+    order = None
     if len(ns) > 1 and not bool((np.diff(ns) >= 0).all()):
         order = np.argsort(ns, kind="stable")
         ns = ns[order]
@@ -251,10 +269,12 @@ def _joint_series(topic: str, batches: _Batches, contract: Sequence[str], origin
         arrays["velocity"],
         arrays["effort"],
         source,
+        publish_ns=batches.publish_times(order),
     )
 
 
-def _stamped(batches: _Batches, origin_ns: int) -> tuple[FloatArray, FloatArray, str] | None:
+def _stamped(batches: _Batches, origin_ns: int) -> tuple[FloatArray, FloatArray, str, NDArray[np.int64]] | None:
+    """Times, values, the time source and the publish times of a stamped stream, in time order."""
     batches.flush()
     if not batches.decoded:
         return None
@@ -263,7 +283,7 @@ def _stamped(batches: _Batches, origin_ns: int) -> tuple[FloatArray, FloatArray,
     log_ns = np.concatenate([log for _, log in batches.decoded])
     ns, source = pick_times(stamps, log_ns)
     order = np.argsort(ns, kind="stable")
-    return _seconds(ns[order], origin_ns), values[order], source
+    return _seconds(ns[order], origin_ns), values[order], source, batches.publish_times(order)
 
 
 # --- the few low-rate messages (rosbags objects) --------------------------------------------------------------------
@@ -398,13 +418,14 @@ def _read(reader: AnyReader, bag: Path) -> Recording:
     clock_sim: list[int] = []
     wanted = [c for c in reader.connections if c.id in route]
     names: dict[str, str] = {}
-    for connection, log_ns, raw in reader.messages(connections=wanted):
+    clock_publish: list[int] = []
+    for connection, log_ns, publish_ns, raw in _messages(reader, bag, wanted):
         kind, key = route[connection.id]
         names.setdefault(key, connection.topic)
         if kind == "joint":
-            joint_batches[key].add(raw, log_ns)
+            joint_batches[key].add(raw, log_ns, publish_ns)
         elif kind == "float":
-            float_batches[key].add(raw, log_ns)
+            float_batches[key].add(raw, log_ns, publish_ns)
         else:
             msg = deserialize(reader, raw, connection.msgtype)
             t = (log_ns - origin) / 1e9
@@ -416,6 +437,7 @@ def _read(reader: AnyReader, bag: Path) -> Recording:
                 rec.diagnostics.extend(_diagnostics(msg, log_ns, origin))
             elif key == "clock":
                 clock_log.append(log_ns)
+                clock_publish.append(publish_ns)
                 clock_sim.append(time_to_ns(msg.clock))
             else:
                 estop_t.append(log_ns)
@@ -426,17 +448,71 @@ def _read(reader: AnyReader, bag: Path) -> Recording:
         data = _stamped(float_batches[key], origin)
         if data is None:
             continue
-        t, values, source = data
+        t, values, source, publish_ns = data
         if key == "base_pose":
-            rec.base_pose = PoseSeries(names[key], t, values[:, :3], values[:, 3:], source)
+            rec.base_pose = PoseSeries(names[key], t, values[:, :3], values[:, 3:], source, publish_ns=publish_ns)
         else:
             setattr(rec, key, WrenchSeries(names[key], t, values[:, :3], values[:, 3:], source))
     if estop_t:
         rec.estopped = BoolSeries(names["estopped"], _seconds(np.asarray(estop_t), origin), np.asarray(estop_v))
     rec.diagnostics.sort(key=lambda d: d.t)
-    if len(clock_log) >= 2:
-        return on_simulated_time(rec, _seconds(np.asarray(clock_log), origin), np.asarray(clock_sim, dtype=np.int64))
-    return rec
+    if len(clock_log) < 2:
+        return rec
+    clock_t, clock_ns = _seconds(np.asarray(clock_log), origin), np.asarray(clock_sim, dtype=np.int64)
+    if recorded_on_simulated_time(np.asarray(clock_log, dtype=np.int64), clock_ns):
+        return with_wall_times(rec, clock_t, np.asarray(clock_publish, dtype=np.int64), clock_ns)
+    return on_simulated_time(rec, clock_t, clock_ns)
+
+
+def _messages(reader: AnyReader, bag: Path, wanted: list[Any]) -> Iterator[tuple[Any, int, int, bytes]]:
+    """(connection, log time, publish time, raw message) of the ``wanted`` connections in time order.
+
+    rosbags gives log times only; for an MCAP bag the publish times (when the sender's middleware published:
+    wall clock, also in a bag recorded on simulated time) come from the MCAP records themselves.
+    """
+    info = yaml.safe_load((bag / "metadata.yaml").read_text(encoding="utf-8")).get("rosbag2_bagfile_information", {})
+    if info.get("storage_identifier") != "mcap" or info.get("compression_mode", "") not in {"", "NONE"}:
+        for connection, log_ns, raw in reader.messages(connections=wanted):
+            yield connection, log_ns, log_ns, raw
+        return
+    by_channel = {(c.topic, c.msgtype): c for c in wanted}
+    topics = sorted({c.topic for c in wanted})
+    for name in info.get("relative_file_paths", []):
+        with (bag / name).open("rb") as stream:
+            for schema, channel, message in make_reader(stream).iter_messages(topics=topics, log_time_order=True):
+                connection = by_channel.get((channel.topic, schema.name if schema is not None else ""))
+                if connection is not None:
+                    yield connection, message.log_time, message.publish_time, message.data
+
+
+def recorded_on_simulated_time(clock_log_ns: NDArray[np.int64], clock_ns: NDArray[np.int64]) -> bool:
+    """Whether the recorder ran on the simulation's clock (use_sim_time): /clock logged at the times it carries."""
+    return bool(np.median(np.abs(clock_log_ns - clock_ns)) < SIM_CLOCK_TOLERANCE_NS)
+
+
+def with_wall_times(
+    rec: Recording, clock_t: FloatArray, clock_publish_ns: NDArray[np.int64], clock_ns: NDArray[np.int64]
+) -> Recording:
+    """``rec`` of a bag recorded on simulated time: its times stay; the streams get their wall-clock times from
+    the publish times (stream rates are measured on the clock the loops ran on) and the simulation's speed
+    comes from /clock's simulated against its publish times."""
+    wall = (clock_publish_ns[-1] - clock_publish_ns[0]) / 1e9
+    speed = (clock_ns[-1] - clock_ns[0]) / 1e9 / max(wall, 1e-9)
+    out = replace(
+        rec,
+        notes=[
+            *rec.notes,
+            f"times are simulated time (recorded on /clock, {len(clock_t)} messages): the simulation ran at "
+            f"{speed:.2f} x real time",
+        ],
+        sim_speed=float(speed),
+    )
+    for key in ("joint_commands", "joint_states", "actuator_commands", "actuator_states", "base_pose"):
+        series = getattr(rec, key)
+        if series is not None and series.publish_ns is not None and len(series.publish_ns) == len(series.t):
+            wall_t = (series.publish_ns - clock_publish_ns[0]) / 1e9 + clock_t[0]
+            setattr(out, key, replace(series, wall_t=wall_t))
+    return out
 
 
 def on_simulated_time(rec: Recording, clock_t: FloatArray, clock_ns: NDArray[np.int64]) -> Recording:
