@@ -147,7 +147,7 @@ class SuiteSession:
                 self.run.removed_shm += remove_stale({name for name in mapped if not family(name) & in_use})
                 self.run.remove_stale_shared_memory()  # after a killed node: the observer's own port, now it ended
                 if self.run.killed() and self.run.removed_shm:
-                    self.report(f"removed {len(self.run.removed_shm)} Fast DDS shared-memory files killed nodes left")
+                    self.report(f"removed {len(self.run.removed_shm)} Fast DDS shared-memory files the nodes left")
                 for sig, handler in self._previous.items():
                     signal.signal(sig, handler)
         return self.exit_codes

@@ -403,6 +403,31 @@ def test_stream_rates_are_on_the_wall_clock_when_the_time_axis_is_simulated() ->
     assert timing.period_p50_ms == pytest.approx(1.0, rel=1e-3)
 
 
+def test_a_bag_recorded_on_simulated_time_keeps_its_times_and_measures_rates_on_publish_times() -> None:
+    """use_sim_time: the bag's times already are simulated (/clock logged at the time it carries), so nothing moves;
+    a 1 kHz stream stamped in simulated time at 0.25 x real time still measures 1 kHz on its publish times, and the
+    simulation's speed comes from /clock's publish times."""
+    from rh5_bringup.report.load import PoseSeries, Recording, recorded_on_simulated_time, with_wall_times
+    from rh5_bringup.report.metrics import stream_timing
+
+    wall0 = 1_795_000_000_000_000_000
+    publish = wall0 + np.arange(0, 2_000_000_000, 1_000_000)  # 1 kHz on the wall clock
+    t = (publish - wall0) * 0.25 / 1e9  # simulated seconds
+    quaternions = np.tile([0.0, 0.0, 0.0, 1.0], (len(t), 1))
+    pose = PoseSeries("/sim/base_pose", t, np.zeros((len(t), 3)), quaternions, "header", publish_ns=publish)
+    rec = Recording(Path("bag"), 0, 0.5, {}, base_pose=pose)
+    clock_publish = wall0 + np.arange(0, 2_010_000_000, 16_000_000)
+    clock_ns = ((clock_publish - wall0) * 0.25).astype(np.int64)
+    assert recorded_on_simulated_time(clock_ns + 2_000_000, clock_ns)  # logged a recorder's take later
+    assert not recorded_on_simulated_time(clock_publish, clock_ns)  # a bag on the wall clock
+    out = with_wall_times(rec, clock_ns / 1e9, clock_publish, clock_ns)
+    np.testing.assert_array_equal(out.base_pose.t, t)
+    timing = stream_timing(out.base_pose)
+    assert timing.rate_hz == pytest.approx(1000.0, rel=1e-3)
+    assert out.sim_speed == pytest.approx(0.25, rel=1e-3)
+    assert "0.25 x real time" in out.notes[-1]
+
+
 def test_planned_base_is_the_one_published_with_the_planned_joints() -> None:
     """Under load the trajectory's base message can reach the recorder after playback started; the report must
     still compare with it, not with the planner's earlier 2-sample hold."""

@@ -350,7 +350,7 @@ class StabilizerNode(SuiteNode):
             level, values["loop_error"] = Level.ERROR, repr(self.loop.error)
         status = Status("rh5/stabilizer", level, self.core.last_reason or self.core.state.value, values, "rh5")
         statuses = [status, *self.task_statuses(peak)]
-        # wall time, also under use_sim_time: every stamp of the suite is on one clock (/clock maps it to sim time)
+        # on the node's clock: the simulation's under use_sim_time, as every stamp of the suite then is
         self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=self.stamp_ns()))
 
     def task_statuses(self, peak: np.ndarray) -> list[Status]:

@@ -299,8 +299,8 @@ class GarbageCollection:
     @classmethod
     def collect_in_slack(cls, slack_ns: int, windows: Sequence[LatencyWindow]) -> None:
         """Collect, when the collector's thresholds say so, the oldest due generation whose collection is expected
-        to fit in ``slack_ns`` (measured: a full collection here takes 0.4-1 ms even with the start-up heap
-        frozen, a young one tens of us), and time it into ``windows[generation]``. A generation that does not
+        to fit in ``slack_ns`` (measured in the control process: 0.4-0.9 ms even for the young generation, the
+        executor's allocations count too), and time it into ``windows[generation]``. A generation that does not
         fit waits for a cycle with more slack; young garbage is collected anyway once far overdue."""
         counts, thresholds = gc.get_count(), gc.get_threshold()
         if counts[0] < thresholds[0]:

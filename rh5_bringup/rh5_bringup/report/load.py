@@ -3,8 +3,11 @@
 Topics are found by their contract name (rh5_msgs_py.interfaces) at the end of the recorded name, so
 ``/joint_states`` and ``/rh5/joint_states`` both match. Times are seconds since the bag's first
 message: the header stamps where the publisher set them on the recorder's clock (sender time, free of
-recording latency), else the time the recorder received the message. The 1 kHz streams are decoded
-in batches by rh5_bringup.report.cdr; the few other messages go through rosbags' deserializer.
+recording latency), else the time the recorder received the message. With a simulation clock (/clock) the
+times are simulated time: a bag recorded on wall time is moved onto it, one recorded on simulated time
+(use_sim_time) already is, and then the MCAP records' publish times give the streams their wall-clock times.
+The 1 kHz streams are decoded in batches by rh5_bringup.report.cdr; the few other messages go through rosbags'
+deserializer.
 """
 
 from __future__ import annotations
@@ -471,18 +474,29 @@ def _messages(reader: AnyReader, bag: Path, wanted: list[Any]) -> Iterator[tuple
     wall clock, also in a bag recorded on simulated time) come from the MCAP records themselves.
     """
     info = yaml.safe_load((bag / "metadata.yaml").read_text(encoding="utf-8")).get("rosbag2_bagfile_information", {})
-    if info.get("storage_identifier") != "mcap" or info.get("compression_mode", "") not in {"", "NONE"}:
+    files = [bag / name for name in info.get("relative_file_paths", [])]
+    mcap = info.get("storage_identifier") == "mcap" and info.get("compression_mode", "") in {"", "NONE"}
+    if not mcap or not all(_indexed(path) for path in files):  # rosbags alone (a file without its summary)
         for connection, log_ns, raw in reader.messages(connections=wanted):
             yield connection, log_ns, log_ns, raw
         return
     by_channel = {(c.topic, c.msgtype): c for c in wanted}
     topics = sorted({c.topic for c in wanted})
-    for name in info.get("relative_file_paths", []):
-        with (bag / name).open("rb") as stream:
+    for path in files:
+        with path.open("rb") as stream:
             for schema, channel, message in make_reader(stream).iter_messages(topics=topics, log_time_order=True):
                 connection = by_channel.get((channel.topic, schema.name if schema is not None else ""))
                 if connection is not None:
                     yield connection, message.log_time, message.publish_time, message.data
+
+
+def _indexed(path: Path) -> bool:
+    """Whether an MCAP file has its summary (chunk indexes), so that its messages can be read in time order."""
+    try:
+        with path.open("rb") as stream:
+            return make_reader(stream).get_summary() is not None
+    except Exception:  # any unreadable file: rosbags decides and reports
+        return False
 
 
 def recorded_on_simulated_time(clock_log_ns: NDArray[np.int64], clock_ns: NDArray[np.int64]) -> bool:
