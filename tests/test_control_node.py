@@ -47,9 +47,16 @@ def boards(ros_graph: Any, ros_test_environment: dict[str, str], free_udp_port: 
 
 
 def _run_control(
-    ros_graph: Any, env: dict[str, str], port: int, log_dir: Path, prefix: list[str]
+    ros_graph: Any,
+    env: dict[str, str],
+    port: int,
+    log_dir: Path,
+    prefix: list[str],
+    *,
+    inspect: Callable[[int], None] = lambda _pid: None,
 ) -> tuple[list[Any], dict[str, int], str, int]:
-    """Start the control process (``prefix`` before its command), watch it for WATCH_S, stop it with SIGINT.
+    """Start the control process (``prefix`` before its command), watch it for WATCH_S (``inspect(pid)`` once it
+    is in the graph), stop it with SIGINT.
 
     Returns the rh5/control and ``control: <task>`` statuses seen (in arrival order), messages per 1 kHz topic, its
     stderr and its exit code.
@@ -99,6 +106,7 @@ def _run_control(
         )
     try:
         assert wait_for_nodes(ros_graph, {"control", "control_streams", "driver", "mapper", "stabilizer"}) == set()
+        inspect(process.pid)
         end = time.monotonic() + WATCH_S
         while time.monotonic() < end:
             rclpy.spin_once(ros_graph, timeout_sec=0.05)
@@ -116,8 +124,21 @@ def test_the_cycle_runs_under_sched_fifo_when_granted(
     if os.geteuid() != 0:
         pytest.skip("granting SCHED_FIFO needs root or an rtprio limit here")
     log_dir = Path(ros_test_environment["ROS_LOG_DIR"]) / "control_granted"
-    statuses, counts, stderr, code = _run_control(ros_graph, dict(os.environ), boards, log_dir, [])
+    affinity: dict[str, set[tuple[int, ...]]] = {}
+
+    def cpus_of(pid: int) -> None:
+        """The CPUs of every thread of the control process and of its stream publisher child."""
+        children = [int(c) for t in Path(f"/proc/{pid}/task").iterdir() for c in (t / "children").read_text().split()]
+        for name, process in (("control", pid), *(("streams", child) for child in children)):
+            tasks = Path(f"/proc/{process}/task").iterdir()
+            affinity[name] = {tuple(sorted(os.sched_getaffinity(int(t.name)))) for t in tasks}
+
+    statuses, counts, stderr, code = _run_control(ros_graph, dict(os.environ), boards, log_dir, [], inspect=cpus_of)
     assert code == 0, stderr[-2000:]
+    # the bringup keeps the control process on the last CPU (cpu_affinity [-1]); its publishing child runs anywhere
+    allowed = tuple(sorted(os.sched_getaffinity(0)))
+    assert affinity["control"] == {(allowed[-1],)}, affinity
+    assert affinity["streams"] == {allowed}, affinity
     last = [s for s in statuses if s.name == "rh5/control"][-1].values
     assert last["loop.realtime"] == "SCHED_FIFO 50, memory locked"
     assert last["loop.realtime_granted"] == "True"

@@ -28,7 +28,7 @@ from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import Level, Status, diagnostics_to_msg
 from rh5_msgs_py.diagnostic_tasks import Increases, task_status
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
-from rh5_msgs_py.realtime import RealtimePublisher, request_realtime
+from rh5_msgs_py.realtime import RealtimePublisher, pin_process, request_realtime
 
 DIAGNOSTICS_PERIOD_S: Final = 1.0
 HELPER_PRIORITY_BELOW: Final = 10
@@ -73,6 +73,8 @@ class ControlNode(SuiteNode):
         )
         self.publisher.on_start = lambda: request_realtime(helper_priority)
         self.helper_realtime = request_realtime(helper_priority)  # this thread: the executor's
+        if params["cpu_affinity"]:  # after the stream publisher started: that child runs on any CPU
+            self.get_logger().info(f"control process on CPUs {pin_process(params['cpu_affinity'])}")
         if not self.streams.wait_ready():
             self.get_logger().error(
                 "the stream publisher process did not start: actuator_states, joint_states, joint_commands and "

@@ -44,6 +44,7 @@ from rh5_msgs_py.conversions import Level, Status, diagnostics_to_msg, to_time_m
 from rh5_msgs_py.diagnostic_tasks import Increases, task_status
 from rh5_msgs_py.names import ACTUATOR_NAMES, FOOT_FRAMES, NUM_JOINTS
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
+from rh5_msgs_py.realtime import pin_process
 
 DIAGNOSTICS_PERIOD_S = 1.0
 SLOW_SIMULATION = 0.5
@@ -64,6 +65,8 @@ class SimHardwareNode(SuiteNode):
         if unknown:
             msg = f"parameter silent_boards: unknown actuators {sorted(unknown)}"
             raise ValueError(msg)
+        if params["cpu_affinity"]:  # before the boards' thread starts: it inherits the CPUs
+            self.get_logger().info(f"simulated hardware on CPUs {pin_process(params['cpu_affinity'])}")
         board_map = load_board_map()
         if params["transport"] == "udp":
             transport = open_transport(

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gc
 import itertools
+import os
 import threading
 import time
 from collections.abc import Iterator
@@ -178,3 +179,38 @@ def test_young_garbage_far_overdue_is_collected_even_without_slack(collector: ty
     collector.collect_in_slack(0, windows)
     assert windows[0].count == 1
     del keep
+
+
+_PIN_SCRIPT = """
+import json, os, sys, threading
+from pathlib import Path
+from rh5_msgs_py.realtime import pin_process
+started = threading.Event()
+threading.Thread(target=started.wait, daemon=True).start()  # a thread that exists before the call
+chosen = pin_process([int(sys.argv[1])])
+later = threading.Thread(target=started.wait, daemon=True)  # and one started after it
+later.start()
+tasks = [int(t.name) for t in Path("/proc/self/task").iterdir()]
+print(json.dumps({"chosen": chosen, "threads": [sorted(os.sched_getaffinity(t)) for t in tasks]}))
+started.set()
+"""
+
+
+def test_pin_process_puts_every_thread_on_the_chosen_cpu_counted_from_the_end() -> None:
+    """In a child process (pinning pytest would slow the rest of the run): -1 is the last CPU the process may use,
+    for the threads that existed and those started after; an index the machine does not have is refused."""
+    import json
+    import subprocess
+    import sys
+
+    allowed = sorted(os.sched_getaffinity(0))
+    out = subprocess.run([sys.executable, "-c", _PIN_SCRIPT, "-1"], capture_output=True, text=True, check=True)
+    result = json.loads(out.stdout)
+    assert result["chosen"] == [allowed[-1]]
+    assert len(result["threads"]) >= 3
+    assert all(cpus == [allowed[-1]] for cpus in result["threads"]), result
+    bad = subprocess.run(
+        [sys.executable, "-c", _PIN_SCRIPT, str(len(allowed))], capture_output=True, text=True, check=False
+    )
+    assert bad.returncode != 0
+    assert f"CPU index {len(allowed)}: this process may use {len(allowed)} CPUs" in bad.stderr
