@@ -326,10 +326,12 @@ class SuiteRun:
         return [p for p in self.processes if p.process.poll() is not None]
 
     def note_shared_memory(self) -> None:
-        """Note which Fast DDS shared-memory files each running process uses (see :meth:`clean_up_after`)."""
+        """Note which Fast DDS shared-memory files each running process and its children (the control process's
+        stream publisher) use (see :meth:`clean_up_after`)."""
         for proc in self.processes:
             if proc.process.poll() is None:
-                proc.shm_files |= shm_files_of(proc.process.pid)
+                for pid in (proc.process.pid, *_descendants(proc.process.pid)):
+                    proc.shm_files |= shm_files_of(pid)
 
     def clean_up_after(self, proc: NodeProcess) -> list[str]:
         """Remove the shared-memory files a dead process left that no live process uses; returns their names."""
@@ -412,6 +414,25 @@ class SuiteRun:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+def _descendants(pid: int) -> list[int]:
+    """The processes ``pid`` started, and theirs (empty once it is gone)."""
+    found, pending = [], [pid]
+    while pending:
+        parent = pending.pop()
+        try:
+            tasks = list(Path(f"/proc/{parent}/task").iterdir())
+        except OSError:
+            continue
+        for task in tasks:
+            try:
+                children = [int(c) for c in (task / "children").read_text().split()]
+            except OSError:
+                continue
+            found += children
+            pending += children
+    return found
 
 
 def wait_for_nodes(

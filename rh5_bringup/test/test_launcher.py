@@ -47,7 +47,7 @@ def test_a_composed_process_gets_each_nodes_parameters_under_its_name(tmp_path: 
     ((host, hosted),) = [(h, n) for h, n in bringup.processes() if n]
     document = composed_parameters((host, *hosted), "robot1")
     assert document["/robot1/driver"]["ros__parameters"]["command_timeout_s"] == 0.5
-    assert document["/robot1/control"]["ros__parameters"] == {"rate_hz": 500.0}
+    assert document["/robot1/control"]["ros__parameters"] == {"rate_hz": 500.0, "cpu_affinity": [-1]}
     command = composed_command(host, hosted, tmp_path / "p.yaml", "robot1")
     assert command[0] == str(Path(sys.prefix) / "bin" / "control_node")
     assert "__node:=control" not in " ".join(command)  # the process's nodes keep their own names
