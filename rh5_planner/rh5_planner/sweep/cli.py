@@ -12,6 +12,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
+import threading
 import time
 from collections.abc import Mapping
 from pathlib import Path
@@ -93,6 +95,9 @@ def run(args: argparse.Namespace, base: Mapping[str, Any], out: IO[str], err: IO
     code = 0
     start = time.time()
     if before < grid.size:
+        # SIGINT interrupts (exit 130, resumable) also where it was inherited ignored, as by a background job
+        if threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGINT, signal.default_int_handler)
         executor = _executor(args)
         engine = "serial (this process)" if args.engine == "serial" else f"Ray {getattr(executor, 'address', '')}"
         err.write(f"engine: {engine}, {executor.workers} worker(s)\n")
