@@ -16,7 +16,6 @@ telemetry-to-command latency, cycle duration (wall and CPU, per step) and the st
 
 from __future__ import annotations
 
-import time
 from typing import Any, Final
 
 from rh5_bringup.control_cycle import ControlCycle, CycleSample
@@ -57,7 +56,7 @@ class ControlNode(SuiteNode):
             estop_to_stabilizer=stabilizer.core.set_estop,
             state_changed=lambda: stabilizer.state_changed,
             hand_off=self._hand_off,
-            stamp=self._simulated_stamp if self.sim_time else time.time_ns,
+            stamp=lambda: driver.core.stamp_ns(self.sim_time),
         )
         self._publish_diagnostics = self.advertise(interfaces.DIAGNOSTICS)
         self.create_wall_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
@@ -82,11 +81,6 @@ class ControlNode(SuiteNode):
             )
         self.loop = self.start_loop(params["rate_hz"], self.cycle.step, "control-1kHz", params["realtime_priority"])
         self.publisher.start()  # after the loop exists: it waits for the loop's slack
-
-    def _simulated_stamp(self) -> int:
-        """Under use_sim_time the streams carry the simulation's time, as /clock does: the simulated boards count it
-        in their telemetry (board_time_us), so each sample is stamped with when it was measured."""
-        return self.driver.core.board_time_ns
 
     def _wait_for_status_slack(self) -> None:
         self.loop.wait_for_slack(STATUS_SLACK_NS)
@@ -135,7 +129,7 @@ class ControlNode(SuiteNode):
             level, message = Level.OK, "running"
         status = Status("rh5/control", level, message, values, hardware_id="rh5")
         statuses = [status, *self.task_statuses()]
-        self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=self.get_clock().now().nanoseconds))
+        self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=self.stamp_ns()))
 
     def task_statuses(self) -> list[Status]:
         """``control: loop`` (ERROR: the cycle died; WARN: deadline misses since the last report) and ``control:

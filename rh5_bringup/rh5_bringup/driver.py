@@ -130,6 +130,11 @@ class DriverCore:
         self.board_time_ns = 0
         """The boards' clock in their newest telemetry (the simulated boards count the simulation's time)."""
 
+    def stamp_ns(self, sim_time: bool) -> int:
+        """The stamp of what this cycle read: under use_sim_time the simulated boards' clock, which counts the
+        simulation's time as /clock does (the time the sample was measured), else wall time."""
+        return self.board_time_ns if sim_time else time.time_ns()
+
     # --- requests ----------------------------------------------------------------------------------------------------
 
     def enable(self, on: bool) -> tuple[bool, str]:

@@ -239,8 +239,7 @@ class DriverNode(SuiteNode, LifecycleNodeMixin):
         readings = self.core.cycle(now_ns, period_ns)
         if not self.core.all_heard:
             return  # no actuator_states until every board has reported once (no made-up zeros downstream)
-        # under use_sim_time stamped with the simulated boards' clock, the simulation's time (as /clock)
-        stamp_ns = self.core.board_time_ns if self.sim_time else time.time_ns()
+        stamp_ns = self.core.stamp_ns(self.sim_time)
         self.publish_states(
             self.state_codec.encode(readings.position, readings.velocity, readings.effort, stamp_ns=stamp_ns)
         )
@@ -301,7 +300,7 @@ class DriverNode(SuiteNode, LifecycleNodeMixin):
             level, message = Level.OK, "driving" if core.enabled else "boards hold (not enabled)"
         status = Status("rh5/driver", level, message, values, hardware_id="rh5")
         statuses = [status, *self.task_statuses(decoder)]
-        self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=self.get_clock().now().nanoseconds))
+        self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=self.stamp_ns()))
 
     def task_statuses(self, decoder: Any) -> list[Status]:
         """``driver: safety``, ``driver: loop`` (on its own) and ``driver: board <name>`` for every board."""

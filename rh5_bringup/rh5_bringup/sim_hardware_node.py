@@ -217,7 +217,7 @@ class SimHardwareNode(SuiteNode):
 
     def _publish_status(self) -> None:
         statuses = self.task_statuses()
-        self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=self.get_clock().now().nanoseconds))
+        self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=self.stamp_ns()))
 
     def _check_silent_boards(self, names: list[str]) -> Callable[[], None]:
         """Refuse actuator names the robot does not have (a misspelt board would silently stay alive)."""

@@ -133,7 +133,7 @@ class MapperNode(SuiteNode):
         message = "ok" if level == Level.OK else "commands clamped or rejected since start"
         status = Status("rh5/mapper", level, message, values, hardware_id="rh5")
         statuses = [status, *self.task_statuses()]
-        self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=self.get_clock().now().nanoseconds))
+        self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=self.stamp_ns()))
 
     def task_statuses(self) -> list[Status]:
         """``mapper: limits`` (WARN while setpoints are clamped) and ``mapper: kinematics`` (ERROR while maps are
