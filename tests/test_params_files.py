@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 
-from rh5_bringup.launcher import check_parameter_names, load_bringup, wait_for_nodes
+from rh5_bringup.launcher import check_parameter_names, load_bringup
 from rh5_bringup.params_files import CONFIG_DIR, main, render_params_file
 
 pytestmark = [pytest.mark.ros]
@@ -34,30 +34,31 @@ def test_the_check_fails_on_a_stale_file(tmp_path: Path, capsys: pytest.CaptureF
     assert "mapper.params.yaml" in capsys.readouterr().err
 
 
-def _wait_until_gone(graph: Any, names: set[str], timeout_s: float = 30.0) -> set[str]:
-    """Wait until no node of ``names`` is in the graph (an earlier test's node of the same name may still be, until
-    its exit is seen); returns those still there."""
+def _wait_for_enclave(graph: Any, names: set[str], enclave: str, timeout_s: float = 60.0) -> set[str]:
+    """Wait until every node of ``names`` is in the graph under ``enclave``; return those that never appeared.
+    The enclave tells this test's process from an earlier test's node of the same name that the graph may still
+    list (a SIGKILLed participant stays until its lease ends)."""
     import rclpy
 
     deadline = time.monotonic() + timeout_s
-    while (present := names & {n for n, ns in graph.get_node_names_and_namespaces() if ns == "/"}) and (
-        time.monotonic() < deadline
-    ):
+    missing = set(names)
+    while missing and time.monotonic() < deadline:
         rclpy.spin_once(graph, timeout_sec=0.1)
-    return present
+        missing = names - {n for n, ns, e in graph.get_node_names_and_namespaces_with_enclaves() if e == enclave}
+    return missing
 
 
 @pytest.mark.parametrize("name", NODES)
 def test_every_node_starts_with_its_shipped_params_file(name: str, ros_graph: Any, tmp_path: Path) -> None:
     node = next(n for n in load_bringup().nodes if n.name == name)
-    # else the node of an earlier test would pass for this one, and the SIGINT below would hit it during its imports
-    assert _wait_until_gone(ros_graph, {name, *node.hosts}) == set()
-    command = [str(BIN / node.executable), "--ros-args", "--params-file", str(CONFIG_DIR / f"{name}.params.yaml")]
+    enclave = f"/params_test_{os.getpid()}_{name}"
+    params = CONFIG_DIR / f"{name}.params.yaml"
+    command = [str(BIN / node.executable), "--ros-args", "--enclave", enclave, "--params-file", str(params)]
     process = subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        missing = wait_for_nodes(ros_graph, {name, *node.hosts}, timeout_s=60.0)
+        missing = _wait_for_enclave(ros_graph, {name, *node.hosts}, enclave)
     finally:
-        process.send_signal(signal.SIGINT)
+        process.send_signal(signal.SIGINT)  # only once its nodes are up (past its imports), unless they never came
         _, err = process.communicate(timeout=60)
     assert missing == set(), err[-2000:]
     assert process.returncode == 0, err[-2000:]
