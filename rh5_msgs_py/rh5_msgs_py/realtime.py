@@ -2,8 +2,9 @@
 
 rclpy timers drop ticks at 1 kHz here (design/ros2_wheels.md, 3d), so each periodic loop
 runs in its own thread on absolute deadlines in integer nanoseconds. A loop given a real-time
-priority asks for ``SCHED_FIFO`` for its thread only, locks the process's memory and keeps the
-garbage collector out of its cycles (``request_realtime``, ``GarbageCollection``); under
+priority asks for ``SCHED_FIFO`` for its thread only, locks the process's memory, keeps the CPUs out of
+deep idle states and keeps the garbage collector out of its cycles (``request_realtime``,
+``GarbageCollection``); under
 ``SCHED_FIFO`` a plain sleep to the deadline wakes within microseconds. Without it (refused by
 the OS, or priority 0) the loop sleeps until shortly before the deadline and spins the rest
 (``time.sleep`` alone overshoots by 50-100 us there). ROS callbacks hand data to the loop
@@ -36,6 +37,7 @@ PR_SET_TIMERSLACK = 29
 SPIN_NS = 50_000  # busy-wait this long before each deadline (sleeps here overshoot by 50 us p50, 270 us p99;
 # spinning through that would cost each 1 kHz loop a third of a core on a machine that has two)
 TIMER_SLACK_NS = 1_000  # Linux's default 50 us timer slack would be most of the jitter budget
+CPU_DMA_LATENCY = Path("/dev/cpu_dma_latency")  # Linux PM QoS: the longest wake-up from idle the CPUs may take
 GIL_SWITCH_INTERVAL_S = 5e-5  # CPython's default 5 ms would let an executor thread delay a tick by 5 ms
 STATS_WINDOW = 1000  # cycles kept for the jitter percentiles (1 s at 1 kHz)
 MCL_CURRENT, MCL_FUTURE = 1, 2  # mlockall flags (Linux <sys/mman.h>)
@@ -187,13 +189,16 @@ def set_timer_slack(ns: int) -> bool:
 
 @dataclass(frozen=True)
 class RealtimeGrant:
-    """What the OS granted a loop thread: SCHED_FIFO at ``priority`` (0: normal scheduling) and locked memory."""
+    """What the OS granted a loop thread: SCHED_FIFO at ``priority`` (0: normal scheduling), locked memory and
+    CPUs kept out of idle states slow to wake from."""
 
     requested: int
     priority: int
     memory_locked: bool
     reason: str = ""
     """Why real-time was not granted (empty when it was, or when none was requested)."""
+    idle_wakeup: str = ""
+    """Empty when the CPUs are kept awake (PM QoS 0 us), else why not."""
 
     @property
     def granted(self) -> bool:
@@ -201,9 +206,11 @@ class RealtimeGrant:
         return self.priority > 0
 
     def describe(self) -> str:
-        """One line for diagnostics and reports, e.g. 'SCHED_FIFO 50, memory locked'."""
+        """One line for diagnostics and reports, e.g. 'SCHED_FIFO 50, memory locked, CPUs kept from deep idle'."""
         if self.granted:
-            return f"SCHED_FIFO {self.priority}, memory {'locked' if self.memory_locked else 'not locked'}"
+            memory = "locked" if self.memory_locked else "not locked"
+            idle = "CPUs kept from deep idle" if not self.idle_wakeup else f"CPU idle not limited ({self.idle_wakeup})"
+            return f"SCHED_FIFO {self.priority}, memory {memory}, {idle}"
         if not self.requested:
             return "normal scheduling (not requested)"
         return f"normal scheduling: SCHED_FIFO {self.requested} refused ({self.reason})"
@@ -230,8 +237,36 @@ def lock_memory() -> bool:
         return _memory_locked
 
 
+_idle_lock = threading.Lock()
+_idle_request: tuple[int | None, str] | None = None
+
+
+def keep_cpus_awake() -> str:
+    """Ask Linux's PM QoS for 0 us wake-up latency from idle, once per process and for its life; "" when held, else
+    why not.
+
+    A CPU that idles between cycles halts, and waking it costs tens of microseconds to milliseconds (on this
+    virtual machine a halted virtual CPU is often given to another guest: a bare SCHED_FIFO loop had jitter p99
+    594 us and 257 periods over 2 ms per minute, with the request 60 us and 40). Held, idle CPUs poll instead,
+    which costs power, not the other processes' CPU time. The request lasts while the file stays open, as
+    cyclictest holds it; writing it needs root or write access to /dev/cpu_dma_latency.
+    """
+    global _idle_request  # noqa: PLW0603 (one request per process, whichever loop asks first)
+    with _idle_lock:
+        if _idle_request is None:
+            try:
+                fd = os.open(CPU_DMA_LATENCY, os.O_WRONLY | os.O_CLOEXEC)
+            except OSError as err:
+                _idle_request = (None, f"{CPU_DMA_LATENCY}: {err.strerror}")
+            else:
+                os.write(fd, (0).to_bytes(4, sys.byteorder))  # an s32 in microseconds; kept open on purpose
+                _idle_request = (fd, "")
+        return _idle_request[1]
+
+
 def request_realtime(priority: int) -> RealtimeGrant:
-    """Put the calling thread under SCHED_FIFO at ``priority`` (1-99) and lock memory; 0 asks for nothing.
+    """Put the calling thread under SCHED_FIFO at ``priority`` (1-99), lock memory and keep the CPUs awake
+    (``keep_cpus_awake``); 0 asks for nothing.
 
     Only the calling thread is raised (Linux schedules threads, and pid 0 means the caller), so the
     process's other threads (executor, publisher) and the other processes keep normal priority.
@@ -247,7 +282,7 @@ def request_realtime(priority: int) -> RealtimeGrant:
         why = "no permission" if err.errno == errno.EPERM else os.strerror(err.errno or 0)
         limit = _rtprio_limit()
         return RealtimeGrant(priority, 0, False, f"{why}; rtprio limit {limit}")
-    return RealtimeGrant(priority, priority, lock_memory())
+    return RealtimeGrant(priority, priority, lock_memory(), idle_wakeup=keep_cpus_awake())
 
 
 def pin_process(cpus: Sequence[int]) -> list[int]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import gc
 import itertools
 import os
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -214,3 +215,53 @@ def test_pin_process_puts_every_thread_on_the_chosen_cpu_counted_from_the_end() 
     )
     assert bad.returncode != 0
     assert f"CPU index {len(allowed)}: this process may use {len(allowed)} CPUs" in bad.stderr
+
+
+_AWAKE_SCRIPT = """
+import sys
+from rh5_msgs_py.realtime import keep_cpus_awake
+print(repr(keep_cpus_awake()), flush=True)
+sys.stdin.readline()  # holds the request until the test lets go
+"""
+
+
+def _cpu_dma_latency_us() -> int:
+    """The kernel's current PM QoS wake-up latency bound (the strictest request of all processes)."""
+    from rh5_msgs_py.realtime import CPU_DMA_LATENCY
+
+    return int.from_bytes(CPU_DMA_LATENCY.read_bytes()[:4], sys.byteorder, signed=True)
+
+
+@pytest.mark.skipif(not os.access("/dev/cpu_dma_latency", os.W_OK), reason="needs write access to PM QoS")
+def test_keep_cpus_awake_holds_zero_latency_for_the_life_of_the_process() -> None:
+    """In a child process (the request would otherwise last for the rest of the run): the kernel's bound is 0 us
+    while the child holds it and returns to what it was once the child exits."""
+    import subprocess
+
+    before = _cpu_dma_latency_us()
+    child = subprocess.Popen(
+        [sys.executable, "-c", _AWAKE_SCRIPT], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert child.stdout is not None
+        assert child.stdout.readline().strip() == "''"  # held
+        assert _cpu_dma_latency_us() == 0
+    finally:
+        child.communicate("\n", timeout=30)
+    assert child.returncode == 0
+    assert _cpu_dma_latency_us() == before
+
+
+def test_keep_cpus_awake_refused_says_why_and_the_grant_still_runs(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without the file (or the right to write it) nothing is raised: the grant runs on and names why."""
+    from pathlib import Path
+
+    from rh5_msgs_py import realtime
+
+    monkeypatch.setattr(realtime, "CPU_DMA_LATENCY", Path("/nonexistent/cpu_dma_latency"))
+    monkeypatch.setattr(realtime, "_idle_request", None)
+    reason = realtime.keep_cpus_awake()
+    assert reason == "/nonexistent/cpu_dma_latency: No such file or directory"
+    grant = realtime.RealtimeGrant(50, 50, True, idle_wakeup=reason)
+    assert grant.describe() == f"SCHED_FIFO 50, memory locked, CPU idle not limited ({reason})"
+    assert realtime.RealtimeGrant(50, 50, True).describe() == "SCHED_FIFO 50, memory locked, CPUs kept from deep idle"

@@ -305,7 +305,8 @@ class LoopTiming:
     jitter_max_us: float
     deadline_misses: int
     scheduling: str = ""
-    """What the OS granted the loop thread (e.g. 'SCHED_FIFO 50, memory locked'), as last reported."""
+    """What the OS granted the loop thread, as last reported (e.g. 'SCHED_FIFO 50, memory locked, CPUs kept from
+    deep idle')."""
     latency_p99_us: float = np.nan
     """Telemetry-to-command latency (the control cycle: read to write), worst p99 over the reports."""
     cycle_p99_us: float = np.nan
