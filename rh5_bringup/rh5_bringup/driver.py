@@ -21,17 +21,17 @@ from typing import NamedTuple
 
 import numpy as np
 
-from rh5_bringup.ndlcom._framing import newest_payloads
+from rh5_bringup.ndlcom._framing import decode_telemetry_into, newest_payloads
 from rh5_bringup.ndlcom.board_map import BoardMap
 from rh5_bringup.ndlcom.codec import FrameEncoder
 from rh5_bringup.ndlcom.command_frames import CommandFrames
 from rh5_bringup.ndlcom.payloads import (
+    MAX_MODE,
     TELEMETRY_LAYOUT,
     TELEMETRY_VERSION,
+    TEMPERATURE_LSB,
     CommandMode,
     PayloadType,
-    TelemetryArrays,
-    decode_telemetry_of,
 )
 from rh5_bringup.transports.base import Transport
 from rh5_msgs_py.realtime import LatencyWindow, LatestValue
@@ -89,6 +89,7 @@ class DriverCore:
         self.silence_timeout_ns = silence_timeout_ns
         self._on_event = on_event
         self._table = board_map.scaling_table()
+        self._lsb = np.ascontiguousarray(self._table.lsb, dtype=np.float64)  # (3, n): what the C decoding reads
         self._encoder = FrameEncoder(board_map.pc_address)
         self._frames = CommandFrames(self._encoder, board_map.addresses(), self._table)
         # setpoints are clamped to the actuator limits and to what the wire can carry, so every frame encodes
@@ -124,6 +125,7 @@ class DriverCore:
         self._checked: tuple[ActuatorCommand | None, list[str]] = (None, [])
         self._sent_ns = np.zeros(256, dtype=np.int64)  # send time of the latest 256 sequence numbers
         self._echoed = np.full(n, -1, dtype=np.int64)
+        self._echo_latencies = np.zeros(n, dtype=np.int64)  # one cycle's round trips (at most one per board)
         self.latency = LatencyWindow()
         self.read_ns = 0
         self.frames_read = 0
@@ -265,44 +267,31 @@ class DriverCore:
 
     def _receive(self, now_ns: int) -> int:
         """Take every telemetry frame waiting (the boards answer each command within the cycle after it) and
-        decode the newest of each board in one vectorised pass; return how many frames were taken."""
+        decode the newest of each board into the readings; return how many frames were taken."""
         frames = self.transport.recv(timeout=0.0)
         if not frames:
             return 0
         counts = self.counts
-        # the latest frame of each board with TELEMETRY v1's size, type and version (C: the cycle's per-frame work)
+        # the latest frame of each board with TELEMETRY v1's size, type and version, then its fields into the
+        # readings (C: the cycle's per-frame work; payloads.decode_telemetry_of is the same decoding in numpy)
         order, payloads, unknown, bad = newest_payloads(
             frames, self._board_of, TELEMETRY_LAYOUT.size, PayloadType.TELEMETRY, TELEMETRY_VERSION
         )
         if unknown:
             counts["unknown_sender_frames"] += unknown
         if bad:
-            counts["bad_payloads"] += bad  # the rest of decode_telemetry's checks follow, vectorised
+            counts["bad_payloads"] += bad
         if not order:
             return len(frames)
-        boards = np.frombuffer(order, dtype=np.uint8).astype(np.intp)
-        valid, telemetry = decode_telemetry_of(payloads, boards, self._table)
-        if not valid.all():
-            counts["bad_payloads"] += int((~valid).sum())
-            boards, telemetry = boards[valid], TelemetryArrays(*(field[valid] for field in telemetry))
         r = self.readings
-        r.position[boards], r.velocity[boards], r.effort[boards] = (
-            telemetry.position,
-            telemetry.velocity,
-            telemetry.effort,
-        )
-        r.temperature[boards], r.status[boards], r.errors[boards] = (
-            telemetry.temperature,
-            telemetry.status,
-            telemetry.errors,
-        )
-        self.heard_ns[boards] = now_ns
-        self.heard_cycle[boards] = counts["cycles"]
-        self.board_time_ns = max(self.board_time_ns, int(telemetry.board_time_us.max()) * 1000)
-        sequence = telemetry.sequence.astype(np.int64)
-        sent_ns = self._sent_ns[sequence % len(self._sent_ns)]
-        echo = (sent_ns != 0) & (sequence != self._echoed[boards])
-        if echo.any():  # one round trip per board and command, however many times the board repeats it
-            self._echoed[boards[echo]] = sequence[echo]
-            self.latency.add_many(now_ns - sent_ns[echo])
+        invalid, board_time_us, echoes = decode_telemetry_into(
+            payloads, order, self._lsb, r.position, r.velocity, r.effort, r.temperature, r.status, r.errors,
+            self.heard_ns, self.heard_cycle, self._sent_ns, self._echoed, self._echo_latencies,
+            now_ns, counts["cycles"], TEMPERATURE_LSB, MAX_MODE,
+        )  # fmt: skip
+        if invalid:
+            counts["bad_payloads"] += invalid  # an unknown mode or a nonzero reserved field: dropped
+        self.board_time_ns = max(self.board_time_ns, board_time_us * 1000)
+        if echoes:  # one round trip per board and command, however many times the board repeats it
+            self.latency.add_many(self._echo_latencies[:echoes])
         return len(frames)

@@ -295,6 +295,97 @@ done:
     return frames;
 }
 
+/* Little-endian reads of a TELEMETRY v1 record's fields (payloads.TELEMETRY_LAYOUT "<4B2HIQ4ihH", 40 bytes). */
+#define TELEMETRY_SIZE 40
+static uint16_t le16(const unsigned char *p) { return (uint16_t)(p[0] | p[1] << 8); }
+static uint32_t le32(const unsigned char *p) { return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24; }
+static uint64_t le64(const unsigned char *p) { return (uint64_t)le32(p) | (uint64_t)le32(p + 4) << 32; }
+
+/* A writable buffer of exactly ``count`` items of ``itemsize`` bytes (float64 or int64 numpy arrays). */
+static int check_items(Py_buffer *b, Py_ssize_t count, Py_ssize_t itemsize, const char *name) {
+    if (b->len != count * itemsize) {
+        PyErr_Format(PyExc_ValueError, "%s: %zd bytes, expected %zd", name, b->len, count * itemsize);
+        return 0;
+    }
+    return 1;
+}
+
+/* decode_telemetry_into(payloads, boards, lsb, position, velocity, effort, temperature, status, errors, heard_ns,
+ *                       heard_cycle, sent_ns, echoed, latencies, now_ns, cycle, temperature_lsb, max_mode)
+ *   The driver's per-cycle telemetry work, as payloads.decode_telemetry_of followed by DriverCore's updates:
+ *   payloads: k TELEMETRY v1 records (size, type and version already checked by newest_payloads);
+ *   boards: their k board indices (bytes); lsb: 3 x n float64, the position, velocity and effort LSB per board.
+ *   A record with mode > max_mode or a nonzero reserved field is invalid and skipped; for a valid one, at its
+ *   board index: position, velocity, effort, temperature (float64, SI), status, errors (int64) are written and
+ *   heard_ns / heard_cycle set to now_ns / cycle. sent_ns: 256 int64 send times by sequence % 256; echoed: n
+ *   int64, the last sequence each board echoed. A valid record echoing a sequence that was sent and that its
+ *   board had not echoed yet adds now_ns - sent to latencies (int64, room for k) and becomes the board's echoed
+ *   one.
+ *   Returns (invalid records, the valid records' largest board_time_us or -1, latencies written). */
+static PyObject *decode_telemetry_into(PyObject *module, PyObject *args) {
+    Py_buffer payloads, boards, lsb, out[6], heard_ns, heard_cycle, sent_ns, echoed, latencies;
+    long long now_ns, cycle;
+    double temperature_lsb;
+    int max_mode;
+    if (!PyArg_ParseTuple(args, "y*y*y*w*w*w*w*w*w*w*w*y*w*w*LLdi", &payloads, &boards, &lsb, &out[0], &out[1],
+                          &out[2], &out[3], &out[4], &out[5], &heard_ns, &heard_cycle, &sent_ns, &echoed, &latencies,
+                          &now_ns, &cycle, &temperature_lsb, &max_mode))
+        return NULL;
+    Py_buffer *all[] = {&payloads, &boards, &lsb, &out[0], &out[1], &out[2], &out[3], &out[4], &out[5],
+                        &heard_ns, &heard_cycle, &sent_ns, &echoed, &latencies};
+    PyObject *result = NULL;
+    Py_ssize_t k = boards.len, n = heard_ns.len / 8;
+    const char *names[] = {"position", "velocity", "effort", "temperature", "status", "errors"};
+    int ok = payloads.len == k * TELEMETRY_SIZE && check_items(&lsb, 3 * n, 8, "lsb") &&
+             check_items(&heard_cycle, n, 8, "heard_cycle") && check_items(&sent_ns, 256, 8, "sent_ns") &&
+             check_items(&echoed, n, 8, "echoed") && latencies.len >= k * 8;
+    for (int f = 0; ok && f < 6; ++f) ok = check_items(&out[f], n, 8, names[f]);
+    if (!ok) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_ValueError, "one 40-byte record per board, and room for as many latencies");
+        goto done;
+    }
+    const unsigned char *record = payloads.buf, *board_of = boards.buf;
+    const double *scale = lsb.buf;
+    double *position = out[0].buf, *velocity = out[1].buf, *effort = out[2].buf, *temperature = out[3].buf;
+    int64_t *status = out[4].buf, *errors = out[5].buf, *heard = heard_ns.buf, *heard_at = heard_cycle.buf;
+    const int64_t *sent = sent_ns.buf;
+    int64_t *last_echo = echoed.buf, *latency = latencies.buf;
+    long invalid = 0;
+    long long board_time_max = -1;
+    Py_ssize_t echoes = 0;
+    for (Py_ssize_t i = 0; i < k; ++i, record += TELEMETRY_SIZE) {
+        Py_ssize_t b = board_of[i];
+        if (b >= n) {
+            PyErr_Format(PyExc_ValueError, "board index %zd of %zd boards", b, n);
+            goto done;
+        }
+        if (record[2] > max_mode || record[3] != 0 || le16(record + 38) != 0) {
+            ++invalid;
+            continue;
+        }
+        status[b] = le16(record + 4);
+        errors[b] = le16(record + 6);
+        position[b] = (int32_t)le32(record + 20) * scale[b];
+        velocity[b] = (int32_t)le32(record + 24) * scale[n + b];
+        effort[b] = (int32_t)le32(record + 28) * scale[2 * n + b];
+        temperature[b] = (int16_t)le16(record + 36) * temperature_lsb;
+        heard[b] = now_ns;
+        heard_at[b] = cycle;
+        long long board_time = (long long)le64(record + 12);
+        if (board_time > board_time_max) board_time_max = board_time;
+        int64_t sequence = le32(record + 8), sent_at = sent[sequence % 256];
+        if (sent_at != 0 && sequence != last_echo[b]) {
+            last_echo[b] = sequence;
+            latency[echoes++] = now_ns - sent_at;
+        }
+    }
+    result = Py_BuildValue("(lLn)", invalid, board_time_max, echoes);
+done:
+    for (size_t j = 0; j < sizeof(all) / sizeof(all[0]); ++j) PyBuffer_Release(all[j]);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"split_frames", split_frames, METH_VARARGS,
      "Decode every complete frame between flags; update the counters; return (frames, garbage, pending_offset)."},
@@ -302,6 +393,8 @@ static PyMethodDef methods[] = {
      "One frame per receiver from n x size payloads, advancing the counters: the frames as a list of bytes."},
     {"newest_payloads", newest_payloads, METH_VARARGS,
      "The latest payload of each board among frames: (boards, joined payloads, unknown senders, bad payloads)."},
+    {"decode_telemetry_into", decode_telemetry_into, METH_VARARGS,
+     "Decode newest_payloads' records into the driver's arrays: (invalid, largest board_time_us, latencies)."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -20,6 +20,7 @@ __all__ = [
     "COMMAND_LAYOUT",
     "COMMAND_VERSION",
     "CURRENT_LSB",
+    "MAX_MODE",
     "TELEMETRY_LAYOUT",
     "TELEMETRY_VERSION",
     "TEMPERATURE_LSB",
@@ -393,7 +394,8 @@ TELEMETRY_DTYPE: Final = np.dtype(
 assert COMMAND_DTYPE.itemsize == COMMAND_LAYOUT.size
 assert TELEMETRY_DTYPE.itemsize == TELEMETRY_LAYOUT.size
 
-_MAX_MODE: Final = max(CommandMode)
+MAX_MODE: Final = max(CommandMode)
+"""The highest mode a board may report: telemetry naming another is invalid."""
 _USED_MASK: Final = np.array([_USED_FIELDS[m] for m in CommandMode], dtype=bool)  # (mode, field)
 
 
@@ -428,7 +430,7 @@ def encode_commands(
     if (
         mode_array.shape != (n,)
         or mode_array.dtype.kind not in "iu"
-        or not ((mode_array >= 0) & (mode_array <= _MAX_MODE)).all()
+        or not ((mode_array >= 0) & (mode_array <= MAX_MODE)).all()
     ):
         raise PayloadError(f"modes must be {n} CommandMode values, got {modes!r}")
     values = np.array([setpoint, velocity_ff, effort_ff], dtype=float)
@@ -514,7 +516,7 @@ def decode_telemetry_of(
     rest are to be dropped) and the arrays of all of them, in SI units.
     """
     rec = np.frombuffer(payloads if isinstance(payloads, bytes) else b"".join(payloads), dtype=TELEMETRY_DTYPE)
-    valid = (rec["mode"] <= _MAX_MODE) & (rec["reserved"] == 0) & (rec["reserved2"] == 0)
+    valid = (rec["mode"] <= MAX_MODE) & (rec["reserved"] == 0) & (rec["reserved2"] == 0)
     lsb = table.lsb[:, boards]
     return valid, TelemetryArrays(
         rec["mode"],
