@@ -61,7 +61,7 @@ def ros_graph(ros_test_environment: dict[str, str]) -> Iterator[object]:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    from rh5_bringup.fastdds_shm import remove_stale, shm_files_of, wait_until_released
+    from rh5_bringup.fastdds_shm import release_observer_files, shm_files_of
 
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("pytest_observer")
@@ -73,14 +73,8 @@ def ros_graph(ros_test_environment: dict[str, str]) -> Iterator[object]:
         node.destroy_node()
         rclpy.try_shutdown()
         context.destroy()
-        # Fast DDS leaves an exiting participant's port in place while a peer holds a reference to it. The
-        # observer lives through the whole run, so every node that exits before it leaves its port mapped here
-        # (and a process a test SIGKILLed never drops its references to the observer's ports). Nothing may
-        # remove them while the observer lives: a node that later takes the same port must share the file
-        # the observer writes to. Once the observer is gone, remove every file of those that no live
-        # participant owns, as `rh5 up` does for its own observer.
-        wait_until_released(os.getpid(), 5.0)
-        remove_stale(mapped)
+        # the observer lived through the whole run: every node that exited before it left its port mapped here
+        release_observer_files(os.getpid(), mapped, 5.0)
 
 
 @pytest.fixture(scope="session")

@@ -26,6 +26,7 @@ __all__ = [
     "family",
     "in_use_shm_files",
     "owned_shm_files",
+    "release_observer_files",
     "remove_stale",
     "shm_files_of",
     "wait_until_released",
@@ -129,3 +130,18 @@ def remove_stale(used: Iterable[str]) -> list[str]:
     bases = {name.removeprefix("sem.").removesuffix("_mutex").removesuffix("_el") for name in used}
     present = {base for base in bases if any((SHM_DIR / name).exists() for name in family(base))}
     return [name for base in sorted(present) for name in _remove_family(base)]
+
+
+def release_observer_files(pid: int, mapped: Iterable[str], timeout_s: float) -> list[str]:
+    """After an observer node of process ``pid`` was destroyed: remove the files it had ``mapped`` that no live
+    participant owns and no other process maps; returns the names removed.
+
+    Fast DDS leaves an exiting participant's port in place while a peer holds a reference to it, so every node
+    that exited before a long-lived observer left its port mapped there. Nothing may remove them while the
+    observer lives (a node that later takes such a port must share the file the observer writes to); once its
+    transport threads ended (waited for up to ``timeout_s``), they go. Files another process still maps, such as
+    a test's observer, stay.
+    """
+    wait_until_released(pid, timeout_s)
+    in_use = in_use_shm_files()
+    return remove_stale({name for name in mapped if not family(name) & in_use})

@@ -16,7 +16,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from rh5_bringup.fastdds_shm import family, in_use_shm_files, remove_stale, shm_files_of, wait_until_released
+from rh5_bringup.fastdds_shm import release_observer_files, shm_files_of
 from rh5_bringup.launcher import Bringup, NodeProcess, SuiteRun, wait_for_nodes
 
 
@@ -139,12 +139,7 @@ class SuiteSession:
                 self.node.destroy_node()
                 rclpy.try_shutdown()
                 context.destroy()  # the observer's participant ends now, not whenever the context is collected
-                # Fast DDS leaves an exiting node's port in place while a peer (this observer) holds a reference
-                # to it: once the observer is gone too, remove those no live participant owns. Not those another
-                # process still maps (a test's observer): a node that later takes such a port must share its file.
-                wait_until_released(os.getpid(), OBSERVER_RELEASE_S)
-                in_use = in_use_shm_files()
-                self.run.removed_shm += remove_stale({name for name in mapped if not family(name) & in_use})
+                self.run.removed_shm += release_observer_files(os.getpid(), mapped, OBSERVER_RELEASE_S)
                 self.run.remove_stale_shared_memory()  # after a killed node: the observer's own port, now it ended
                 if self.run.killed() and self.run.removed_shm:
                     self.report(f"removed {len(self.run.removed_shm)} Fast DDS shared-memory files the nodes left")

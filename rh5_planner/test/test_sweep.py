@@ -65,3 +65,27 @@ def test_checkpoint_keeps_rows_and_solutions_and_ignores_a_half_written_line(tmp
     with pytest.raises(CheckpointMismatchError):
         Checkpoint(tmp_path, {**description, "solver": {"max_iterations": 20}})
     assert not Checkpoint(tmp_path, {**description, "solver": {}}, restart=True).rows
+
+
+def test_the_sweep_command_gives_the_callers_sigint_handler_back(tmp_path: Path) -> None:
+    """A sweep installs Python's KeyboardInterrupt handler while it solves (so that Ctrl-C interrupts it also where
+    SIGINT was inherited ignored) and restores the caller's when it ends: one cheap point, solved in-process."""
+    import io
+    import signal
+
+    from rh5_planner.plan_cli import main
+
+    def callers_handler(_signum: int, _frame: object) -> None:
+        """Stands for an embedding program's own handler."""
+
+    previous = signal.signal(signal.SIGINT, callers_handler)
+    try:
+        cheap = ["--set", "total_time_s=0.6", "--set", "hold_s=0.1", "--set", "com_range_m=0.1"]
+        argv = ["--sweep", "squat_with_5kg_weights", "payload_kg_per_hand=0", "--engine", "serial", *cheap]
+        argv += ["--max-iterations", "5", "--output-dir", str(tmp_path), "--no-figures"]
+        err = io.StringIO()
+        assert main(argv, out=io.StringIO(), err=err) in {0, 1}, err.getvalue()
+        assert "engine: serial (this process)" in err.getvalue()
+        assert signal.getsignal(signal.SIGINT) is callers_handler
+    finally:
+        signal.signal(signal.SIGINT, previous)

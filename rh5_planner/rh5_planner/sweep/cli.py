@@ -91,35 +91,17 @@ def run(args: argparse.Namespace, base: Mapping[str, Any], out: IO[str], err: IO
         f"{grid.axes[-1].key}), {before} done before; checkpoint {folder}\n"
     )
     progress = SweepProgress(err, label=f"sweep {motion}")
-    rows: dict[str, dict[str, Any]] = {}
-    code = 0
     start = time.time()
     if before < grid.size:
-        # SIGINT interrupts (exit 130, resumable) also where it was inherited ignored, as by a background job
-        if threading.current_thread() is threading.main_thread():
-            signal.signal(signal.SIGINT, signal.default_int_handler)
-        executor = _executor(args)
-        engine = "serial (this process)" if args.engine == "serial" else f"Ray {getattr(executor, 'address', '')}"
-        err.write(f"engine: {engine}, {executor.workers} worker(s)\n")
+        # SIGINT interrupts (exit 130, resumable) also where it was inherited ignored, as by a background job;
+        # the caller's handler is back once the sweep ends
+        in_main = threading.current_thread() is threading.main_thread()
+        previous = signal.signal(signal.SIGINT, signal.default_int_handler) if in_main else None
         try:
-            rows = run_sweep(
-                grid,
-                checkpoint,
-                executor,
-                max_iterations=args.max_iterations,
-                stop_threshold=args.stop_threshold,
-                nthreads=args.threads or 1,
-                on_progress=_status_writer(folder, progress),
-            )
-        except (KeyboardInterrupt, SystemExit):
-            progress.finish("interrupted")
-            err.write(
-                f"interrupted: {len(checkpoint.done())} of {grid.size} points are in {folder}; "
-                "run the same command to resume\n"
-            )
-            code = EXIT_INTERRUPTED
+            code, rows = _solve(args, grid, checkpoint, progress, err)
         finally:
-            executor.close()
+            if previous is not None:
+                signal.signal(signal.SIGINT, previous)
         if code:
             return code
         progress.finish(f"done in {clock(time.time() - start)}")
@@ -134,7 +116,36 @@ def run(args: argparse.Namespace, base: Mapping[str, Any], out: IO[str], err: IO
         if axis.is_limit:
             out.write(_minimal_text(grid, ordered, axis.key))
     out.write("written:\n" + "".join(f"  {f}\n" for f in files))
-    return 1 if any(r.get("status") == "failed" for r in ordered) else code
+    return 1 if any(r.get("status") == "failed" for r in ordered) else 0
+
+
+def _solve(
+    args: argparse.Namespace, grid: Grid, checkpoint: Checkpoint, progress: SweepProgress, err: IO[str]
+) -> tuple[int, dict[str, dict[str, Any]]]:
+    """Solve the points not in the checkpoint on the chosen engine: (0 or EXIT_INTERRUPTED, rows by point id)."""
+    executor = _executor(args)
+    engine = "serial (this process)" if args.engine == "serial" else f"Ray {getattr(executor, 'address', '')}"
+    err.write(f"engine: {engine}, {executor.workers} worker(s)\n")
+    try:
+        rows = run_sweep(
+            grid,
+            checkpoint,
+            executor,
+            max_iterations=args.max_iterations,
+            stop_threshold=args.stop_threshold,
+            nthreads=args.threads or 1,
+            on_progress=_status_writer(checkpoint.folder, progress),
+        )
+    except (KeyboardInterrupt, SystemExit):
+        progress.finish("interrupted")
+        err.write(
+            f"interrupted: {len(checkpoint.done())} of {grid.size} points are in {checkpoint.folder}; "
+            "run the same command to resume\n"
+        )
+        return EXIT_INTERRUPTED, {}
+    finally:
+        executor.close()
+    return 0, rows
 
 
 def _minimal_text(grid: Grid, rows: list[dict[str, Any]], key: str) -> str:
