@@ -34,6 +34,9 @@ HELPER_PRIORITY_BELOW: Final = 10
 """The status publisher and executor threads run this far below the cycle's SCHED_FIFO priority."""
 STATUS_SLACK_NS: Final = 300_000
 """The same for a node's /diagnostics status (up to a hundred key-values)."""
+CALLBACK_SLACK_NS: Final = 200_000
+"""The executor starts a callback (a /clock tick, a service call, a parameter set) only this long before the cycle's
+next wake-up or earlier."""
 
 
 class ControlNode(SuiteNode):
@@ -63,6 +66,7 @@ class ControlNode(SuiteNode):
         params = self.params
         for node in (self, driver, mapper, stabilizer):
             node.status_gate = self._wait_for_status_slack
+        self.callback_gate = self._wait_for_callback_slack
         # The status publisher and the executor share the interpreter lock with the cycle. At normal priority the OS may
         # preempt them while they hold it (the simulation is busy on both cores), and the cycle then waits for
         # milliseconds: a priority inversion. They get SCHED_FIFO just below the cycle; they never spin, and
@@ -84,6 +88,9 @@ class ControlNode(SuiteNode):
 
     def _wait_for_status_slack(self) -> None:
         self.loop.wait_for_slack(STATUS_SLACK_NS)
+
+    def _wait_for_callback_slack(self) -> None:
+        self.loop.wait_for_slack(CALLBACK_SLACK_NS)
 
     def _hand_off(self, sample: CycleSample) -> None:
         """The cycle's hand-over (never blocks): the streams to the publishing process, a stabilizer state change

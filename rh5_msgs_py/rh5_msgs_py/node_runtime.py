@@ -17,7 +17,13 @@ import rclpy
 from rcl_interfaces.msg import SetParametersResult
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import (
+    ConditionReachedException,
+    ExternalShutdownException,
+    ShutdownException,
+    SingleThreadedExecutor,
+    TimeoutException,
+)
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.subscription import Subscription
@@ -53,6 +59,9 @@ class SuiteNode(Node):
         """Called before the node builds and publishes its /diagnostics status: a real-time loop of the process
         makes it wait for the loop's slack (a status is hundreds of microseconds of work under the interpreter
         lock)."""
+        self.callback_gate: Callable[[], object] | None = None
+        """Set by a process with a real-time loop: the executor calls it before every callback of the process
+        (``GatedExecutor``)."""
 
     def apply_live(self, appliers: Mapping[str, Applier]) -> None:
         """Make every writable parameter take effect at run time, on the next cycle of whatever uses it.
@@ -192,6 +201,33 @@ def log_realtime_grant(logger: Any, grant: RealtimeGrant) -> None:
         )
 
 
+class GatedExecutor(SingleThreadedExecutor):
+    """A single-threaded executor that runs each ready callback only once ``gate`` returns.
+
+    In a process with a real-time loop the gate waits for the loop's slack: Python runs one thread at a time,
+    and a callback that holds the interpreter lock when the loop wakes delays that cycle by up to the lock's
+    switch interval plus the callback's longest C call. Measured in the control process: jitter p99 130-140 us
+    between misses with the executor ungated.
+    """
+
+    def __init__(self, gate: Callable[[], object]) -> None:
+        super().__init__()
+        self._gate = gate
+
+    def _spin_once_impl(
+        self, timeout_sec: float | None = None, wait_condition: Callable[[], bool] = lambda: False
+    ) -> None:
+        try:
+            handler, _, _ = self.wait_for_ready_callbacks(timeout_sec, None, wait_condition)
+        except (ShutdownException, TimeoutException, ConditionReachedException):
+            return
+        self._gate()
+        handler()
+        if handler.exception() is not None:
+            raise handler.exception()
+        handler.result()
+
+
 def run_node(factory: Callable[[], SuiteNode | Sequence[SuiteNode]], args: list[str] | None = None) -> None:
     """Run one node, or the nodes of one process (``factory`` returns them all), until SIGINT/SIGTERM; exit 0
     when stopped, 2 when it could not start. Each node prints its summary line when it stops (the first node
@@ -211,7 +247,8 @@ def run_node(factory: Callable[[], SuiteNode | Sequence[SuiteNode]], args: list[
             if node.appliers is None and any(not spec.read_only for spec in node.param_specs):
                 msg = f"{node.get_name()}: writable parameters but no apply_live (a set would be ignored)"
                 raise RuntimeError(msg)
-        executor = rclpy.get_global_executor()
+        gate = next((node.callback_gate for node in nodes if node.callback_gate is not None), None)
+        executor = rclpy.get_global_executor() if gate is None else GatedExecutor(gate)
         for node in nodes:
             executor.add_node(node)
         executor.spin()
