@@ -206,8 +206,8 @@ class GatedExecutor(SingleThreadedExecutor):
 
     In a process with a real-time loop the gate waits for the loop's slack: Python runs one thread at a time,
     and a callback that holds the interpreter lock when the loop wakes delays that cycle by up to the lock's
-    switch interval plus the callback's longest C call. Measured in the control process: jitter p99 130-140 us
-    between misses with the executor ungated.
+    switch interval plus the callback's longest C call. Measured in the control process (make run): 594 deadline
+    misses ungated, 405 gated; loading a 6300-point trajectory cost 136 misses ungated, 27 gated.
     """
 
     def __init__(self, gate: Callable[[], object]) -> None:
