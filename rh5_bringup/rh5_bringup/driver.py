@@ -38,6 +38,7 @@ from rh5_msgs_py.realtime import LatencyWindow, LatestValue
 
 FloatArray = np.ndarray
 STARTUP_GRACE_NS = 200_000_000  # the router learns where the driver is from its first commands
+BOARD_CLOCK_RESTART_NS = 1_000_000_000  # the boards' clock going back this far is a restart, not a late frame
 
 
 class ActuatorCommand(NamedTuple):
@@ -130,7 +131,8 @@ class DriverCore:
         self.read_ns = 0
         self.frames_read = 0
         self.board_time_ns = 0
-        """The boards' clock in their newest telemetry (the simulated boards count the simulation's time)."""
+        """The boards' clock in their newest telemetry (the simulated boards count the simulation's time): it only
+        moves forward, unless it went back by more than BOARD_CLOCK_RESTART_NS (the boards' clock restarted)."""
 
     def stamp_ns(self, sim_time: bool) -> int:
         """The stamp of what this cycle read: under use_sim_time the simulated boards' clock, which counts the
@@ -291,7 +293,9 @@ class DriverCore:
         )  # fmt: skip
         if invalid:
             counts["bad_payloads"] += invalid  # an unknown mode or a nonzero reserved field: dropped
-        self.board_time_ns = max(self.board_time_ns, board_time_us * 1000)
+        newest_ns = board_time_us * 1000
+        if newest_ns > self.board_time_ns or self.board_time_ns - newest_ns > BOARD_CLOCK_RESTART_NS:
+            self.board_time_ns = newest_ns  # forward, or a restarted clock (a new simulation): never a stale maximum
         if echoes:  # one round trip per board and command, however many times the board repeats it
             self.latency.add_many(self._echo_latencies[:echoes])
         return len(frames)

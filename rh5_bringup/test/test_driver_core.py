@@ -117,3 +117,36 @@ def test_paced_boards_wait_for_a_late_driver_and_tick_again_when_it_is_gone() ->
         assert emulator.board_time_us == before + period // 1000
     finally:
         sim.shutdown()
+
+
+def test_the_board_clock_stamps_forward_and_follows_a_restarted_simulation() -> None:
+    """The stamp under use_sim_time is the boards' clock: a late frame with an older time does not move it back,
+    a clock that went back by more than a second (a simulation started anew) is followed, not outwaited."""
+    from rh5_bringup.driver import BOARD_CLOCK_RESTART_NS, DriverCore
+
+    board_map = load_board_map()
+    link = open_transport("udp", local=("127.0.0.1", 0), remote=("127.0.0.1", 9), receivers=[board_map.pc_address])
+    driver = DriverCore(board_map, link, LIMITS, command_timeout_ns=10**8, silence_timeout_ns=10**9)
+    boards = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+
+    def telemetry_at(board_time_us: int) -> int:
+        telemetry = Telemetry(
+            CommandMode.HOLD, StatusFlags.NONE, ErrorFlags.NONE, 0, board_time_us, 0.0, 0.0, 0.0, 0.0, 25.0
+        )
+        frames = b"".join(
+            encode_frame(board_map.pc_address, b.address, 0, encode_telemetry(telemetry, b.scaling)) for b in board_map
+        )
+        boards.sendto(frames, link.local_address)
+        time.sleep(0.02)
+        driver.read(time.monotonic_ns(), 1_000_000)
+        return driver.stamp_ns(sim_time=True)
+
+    try:
+        assert telemetry_at(5_000_000) == 5_000_000_000
+        assert telemetry_at(4_900_000) == 5_000_000_000  # 0.1 s older: a late frame, the stamp stays
+        assert telemetry_at(5_001_000) == 5_001_000_000
+        restarted = 5_001_000 - BOARD_CLOCK_RESTART_NS // 1000 - 1
+        assert telemetry_at(restarted) == restarted * 1000  # over a second back: the clock restarted
+    finally:
+        boards.close()
+        link.shutdown()
