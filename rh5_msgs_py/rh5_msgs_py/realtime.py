@@ -2,10 +2,9 @@
 
 rclpy timers drop ticks at 1 kHz here (design/ros2_wheels.md, 3d), so each periodic loop
 runs in its own thread on absolute deadlines in integer nanoseconds. A loop given a real-time
-priority asks for ``SCHED_FIFO`` for its thread only, locks the process's memory, keeps the CPUs out of
-deep idle states and keeps the garbage collector out of its cycles (``request_realtime``,
-``GarbageCollection``); under
-``SCHED_FIFO`` a plain sleep to the deadline wakes within microseconds. Without it (refused by
+priority asks for ``SCHED_FIFO`` for its thread only, locks the process's memory, keeps the CPUs
+out of deep idle states and keeps the garbage collector out of its cycles (``request_realtime``,
+``GarbageCollection``); under ``SCHED_FIFO`` a plain sleep to the deadline wakes within microseconds. Without it (refused by
 the OS, or priority 0) the loop sleeps until shortly before the deadline and spins the rest
 (``time.sleep`` alone overshoots by 50-100 us there). ROS callbacks hand data to the loop
 through a ``LatestValue``: one slot that the loop reads without ever waiting for a writer; the
@@ -254,12 +253,15 @@ def keep_cpus_awake() -> str:
     global _idle_request  # noqa: PLW0603 (one request per process, whichever loop asks first)
     with _idle_lock:
         if _idle_request is None:
+            fd = None
             try:
                 fd = os.open(CPU_DMA_LATENCY, os.O_WRONLY | os.O_CLOEXEC)
+                os.write(fd, (0).to_bytes(4, sys.byteorder))  # an s32 in microseconds; kept open on purpose
             except OSError as err:
+                if fd is not None:
+                    os.close(fd)
                 _idle_request = (None, f"{CPU_DMA_LATENCY}: {err.strerror}")
             else:
-                os.write(fd, (0).to_bytes(4, sys.byteorder))  # an s32 in microseconds; kept open on purpose
                 _idle_request = (fd, "")
         return _idle_request[1]
 
