@@ -4,9 +4,9 @@ rclpy timers drop ticks at 1 kHz here (design/ros2_wheels.md, 3d), so each perio
 runs in its own thread on absolute deadlines in integer nanoseconds. A loop given a real-time
 priority asks for ``SCHED_FIFO`` for its thread only, locks the process's memory, keeps the CPUs
 out of deep idle states and keeps the garbage collector out of its cycles (``request_realtime``,
-``GarbageCollection``); under ``SCHED_FIFO`` a plain sleep to the deadline wakes within microseconds. Without it (refused by
-the OS, or priority 0) the loop sleeps until shortly before the deadline and spins the rest
-(``time.sleep`` alone overshoots by 50-100 us there). ROS callbacks hand data to the loop
+``GarbageCollection``); under ``SCHED_FIFO`` a plain sleep to the deadline wakes within microseconds.
+Without it (refused by the OS, or priority 0) the loop sleeps until shortly before the deadline and
+spins the rest (``time.sleep`` alone overshoots by 50-100 us there). ROS callbacks hand data to the loop
 through a ``LatestValue``: one slot that the loop reads without ever waiting for a writer; the
 loop hands its topics to a ``RealtimePublisher``, whose thread publishes them and which drops a
 sample rather than make the loop wait.
