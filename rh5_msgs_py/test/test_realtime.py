@@ -249,6 +249,9 @@ def test_keep_cpus_awake_holds_zero_latency_for_the_life_of_the_process() -> Non
     finally:
         child.communicate("\n", timeout=30)
     assert child.returncode == 0
+    deadline = time.monotonic() + 10.0  # another process of the run may hold its own request for a moment
+    while _cpu_dma_latency_us() != before and time.monotonic() < deadline:
+        time.sleep(0.05)
     assert _cpu_dma_latency_us() == before
 
 
