@@ -7,13 +7,12 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from rh5_bringup.launcher import check_parameter_names, load_bringup
+from rh5_bringup.launcher import check_parameter_names, load_bringup, wait_for_nodes
 from rh5_bringup.params_files import CONFIG_DIR, main, render_params_file
 
 pytestmark = [pytest.mark.ros]
@@ -34,20 +33,6 @@ def test_the_check_fails_on_a_stale_file(tmp_path: Path, capsys: pytest.CaptureF
     assert "mapper.params.yaml" in capsys.readouterr().err
 
 
-def _wait_for_enclave(graph: Any, names: set[str], enclave: str, timeout_s: float = 60.0) -> set[str]:
-    """Wait until every node of ``names`` is in the graph under ``enclave``; return those that never appeared.
-    The enclave tells this test's process from an earlier test's node of the same name that the graph may still
-    list (a SIGKILLed participant stays until its lease ends)."""
-    import rclpy
-
-    deadline = time.monotonic() + timeout_s
-    missing = set(names)
-    while missing and time.monotonic() < deadline:
-        rclpy.spin_once(graph, timeout_sec=0.1)
-        missing = names - {n for n, ns, e in graph.get_node_names_and_namespaces_with_enclaves() if e == enclave}
-    return missing
-
-
 @pytest.mark.parametrize("name", NODES)
 def test_every_node_starts_with_its_shipped_params_file(name: str, ros_graph: Any, tmp_path: Path) -> None:
     node = next(n for n in load_bringup().nodes if n.name == name)
@@ -56,7 +41,7 @@ def test_every_node_starts_with_its_shipped_params_file(name: str, ros_graph: An
     command = [str(BIN / node.executable), "--ros-args", "--enclave", enclave, "--params-file", str(params)]
     process = subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        missing = _wait_for_enclave(ros_graph, {name, *node.hosts}, enclave)
+        missing = wait_for_nodes(ros_graph, {name, *node.hosts}, timeout_s=60.0, enclave=enclave)
     finally:
         process.send_signal(signal.SIGINT)  # only once its nodes are up (past its imports), unless they never came
         _, err = process.communicate(timeout=60)

@@ -441,16 +441,23 @@ def wait_for_nodes(
     namespace: str = "/",
     timeout_s: float = 20.0,
     exited: Callable[[], set[str]] | None = None,
+    *,
+    enclave: str | None = None,
 ) -> set[str]:
     """Wait until every node in ``names`` is visible in the ROS graph; return those that never appeared.
-    ``exited`` (names of nodes whose process stopped) ends the wait early once every missing node has stopped."""
+    ``exited`` (names of nodes whose process stopped) ends the wait early once every missing node has stopped;
+    ``enclave`` counts only nodes of that enclave (``--ros-args --enclave``), not another process's namesakes."""
     import rclpy  # noqa: PLC0415 (the launcher imports ROS only when it observes the graph)
 
     deadline = time.monotonic() + timeout_s
     missing = set(names)
     while missing and time.monotonic() < deadline:
         rclpy.spin_once(graph_node, timeout_sec=0.1)
-        visible = {name for name, ns in graph_node.get_node_names_and_namespaces() if ns == namespace}
+        visible = {
+            name
+            for name, ns, node_enclave in graph_node.get_node_names_and_namespaces_with_enclaves()
+            if ns == namespace and enclave in (None, node_enclave)
+        }
         missing = names - visible
         if missing and exited is not None and missing <= exited():
             break
