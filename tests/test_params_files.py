@@ -33,6 +33,22 @@ def test_the_check_fails_on_a_stale_file(tmp_path: Path, capsys: pytest.CaptureF
     assert "mapper.params.yaml" in capsys.readouterr().err
 
 
+def _wait_until_spinning(graph: Any, name: str, timeout_s: float = 30.0) -> None:
+    """Wait until node ``name`` answers a parameter request: its process spins only once every node is built (a
+    node shows in the graph while it still creates its services, and a stop then can abort the process)."""
+    import rclpy
+    from rcl_interfaces.srv import ListParameters
+
+    client = graph.create_client(ListParameters, f"/{name}/list_parameters")
+    try:
+        assert client.wait_for_service(timeout_sec=timeout_s), f"{name}: no list_parameters service"
+        future = client.call_async(ListParameters.Request())
+        rclpy.spin_until_future_complete(graph, future, timeout_sec=timeout_s)
+        assert future.done(), f"{name} did not answer within {timeout_s} s"
+    finally:
+        graph.destroy_client(client)
+
+
 @pytest.mark.parametrize("name", NODES)
 def test_every_node_starts_with_its_shipped_params_file(name: str, ros_graph: Any, tmp_path: Path) -> None:
     node = next(n for n in load_bringup().nodes if n.name == name)
@@ -42,8 +58,10 @@ def test_every_node_starts_with_its_shipped_params_file(name: str, ros_graph: An
     process = subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         missing = wait_for_nodes(ros_graph, {name, *node.hosts}, timeout_s=60.0, enclave=enclave)
+        if not missing:
+            _wait_until_spinning(ros_graph, name)
     finally:
-        process.send_signal(signal.SIGINT)  # only once its nodes are up (past its imports), unless they never came
+        process.send_signal(signal.SIGINT)  # only once it is built and spinning, unless its nodes never came
         _, err = process.communicate(timeout=60)
     assert missing == set(), err[-2000:]
     assert process.returncode == 0, err[-2000:]
