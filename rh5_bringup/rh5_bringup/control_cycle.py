@@ -66,6 +66,7 @@ class ControlCycle:
         state_changed: Callable[[], bool] = lambda: False,
         hand_off: Callable[[CycleSample], bool] | None = None,
         stamp: Callable[[], int] = time.time_ns,
+        board_time: Callable[[int], None] | None = None,
     ) -> None:
         self.driver = driver
         self.mapper = mapper
@@ -75,6 +76,8 @@ class ControlCycle:
         self._hand_off = hand_off
         self._stamp = stamp
         """The stamp of the cycle's messages: wall time, or the simulation's time under use_sim_time."""
+        self._board_time = board_time
+        """Hears the boards' clock after each read (the process's ROS clocks follow it under use_sim_time)."""
         self.telemetry_to_command = LatencyWindow()
         """From the read that took the telemetry to the hand-over of the commands computed from it (ns)."""
         self.compute = LatencyWindow()
@@ -106,6 +109,8 @@ class ControlCycle:
         readings = driver.read(now_ns, period_ns)
         t_read = clock()
         stages["read"].add(t_read - now_ns)
+        if self._board_time is not None:
+            self._board_time(driver.board_time_ns)
         self._estop_to_stabilizer(driver.estopped)
         actuator_states = joint_states = joint_commands = actuator_commands = None
         self.measurement = None

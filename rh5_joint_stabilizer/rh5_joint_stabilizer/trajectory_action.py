@@ -89,8 +89,9 @@ class TrajectoryActionServer:
             handle_accepted_callback=self._on_accepted,
             cancel_callback=lambda _handle: CancelResponse.ACCEPT,
         )
-        # Runs only while a goal executes: each executor wake-up costs ~1 ms here, which the 1 kHz cycle shares.
-        self._timer = node.create_timer(FEEDBACK_PERIOD_S, self._watch)
+        # Runs only while a goal executes: each executor wake-up costs ~1 ms here, which the 1 kHz cycle shares. On the
+        # steady clock: a timer on the ROS clock wakes the executor at every step of simulated time, cancelled or not.
+        self._timer = node.create_wall_timer(FEEDBACK_PERIOD_S, self._watch)
         self._timer.cancel()
 
     # --- goal arrival --------------------------------------------------------------------------------------------
