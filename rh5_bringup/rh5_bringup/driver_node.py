@@ -103,7 +103,8 @@ class DriverNode(SuiteNode, LifecycleNodeMixin):
         self.create_service(SetBool, interfaces.ENABLE_SERVICE, self._on_enable)
         self.create_service(Trigger, interfaces.ESTOP_SERVICE, self._on_estop)
         self.create_service(Trigger, interfaces.RESET_ESTOP_SERVICE, self._on_reset_estop)
-        self.create_wall_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
+        if not composed:  # composed: the control node publishes every hosted node's status on one timer
+            self.create_wall_timer(DIAGNOSTICS_PERIOD_S, self.publish_status)
         self._increases = Increases()
         core = self.core
         self.apply_live(
@@ -265,7 +266,7 @@ class DriverNode(SuiteNode, LifecycleNodeMixin):
         response.success, response.message = True, "emergency stop cleared; call ~/enable to drive again"
         return response
 
-    def _publish_status(self) -> None:
+    def publish_status(self) -> None:
         self.status_gate()
         core = self.core
         values: dict[str, object] = {

@@ -55,7 +55,8 @@ class MapperNode(SuiteNode):
         if not composed:
             self.subscribe_stream(interfaces.JOINT_COMMANDS, self._on_joint_commands)
             self.subscribe_stream(interfaces.ACTUATOR_STATES, self._on_actuator_states)
-        self.create_wall_timer(DIAGNOSTICS_PERIOD_S, self._publish_status)
+        if not composed:  # composed: the control node publishes every hosted node's status on one timer
+            self.create_wall_timer(DIAGNOSTICS_PERIOD_S, self.publish_status)
         core = self.core
         self.apply_live(  # the next map uses the new setting; the loop never waits for it
             {
@@ -123,7 +124,7 @@ class MapperNode(SuiteNode):
                 )
             )
 
-    def _publish_status(self) -> None:
+    def publish_status(self) -> None:
         self.status_gate()
         level = Level.WARN if self.rejected or self.clamped else Level.OK
         values: dict[str, object] = {f"rejected.{k}": n for k, n in self.rejected.items()}

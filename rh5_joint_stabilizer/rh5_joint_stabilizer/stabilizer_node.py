@@ -109,7 +109,8 @@ class StabilizerNode(SuiteNode):
         self.create_service(Trigger, interfaces.START_SERVICE, self._on_start)
         self.create_service(Trigger, interfaces.STOP_SERVICE, self._on_stop)
         self.create_service(Trigger, interfaces.HOLD_SERVICE, self._on_hold)
-        self.create_wall_timer(DIAGNOSTICS_PERIOD_S, self.publish_status)
+        if not composed:  # composed: the control node publishes every hosted node's status on one timer
+            self.create_wall_timer(DIAGNOSTICS_PERIOD_S, self.publish_status)
         self.action = self._action_server()
         if params["trajectory_file"]:
             self._load_file(params["trajectory_file"])
