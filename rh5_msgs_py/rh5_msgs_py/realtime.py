@@ -26,7 +26,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import ClassVar, Generic, TypeVar
+from typing import ClassVar, Final, Generic, TypeVar
 
 import numpy as np
 
@@ -39,6 +39,8 @@ TIMER_SLACK_NS = 1_000  # Linux's default 50 us timer slack would be most of the
 CPU_DMA_LATENCY = Path("/dev/cpu_dma_latency")  # Linux PM QoS: the longest wake-up from idle the CPUs may take
 GIL_SWITCH_INTERVAL_S = 5e-5  # CPython's default 5 ms would let an executor thread delay a tick by 5 ms
 STATS_WINDOW = 1000  # cycles kept for the jitter percentiles (1 s at 1 kHz)
+JITTER_EDGES_US: Final = (10, 20, 30, 40, 50, 60, 70, 80, 90, 100, 125, 150, 200, 300, 500, 1000, 2000, 5000)
+"""Upper edges of the run-long jitter histogram's buckets (one more bucket holds everything above the last)."""
 MCL_CURRENT, MCL_FUTURE = 1, 2  # mlockall flags (Linux <sys/mman.h>)
 RTPRIO_FIX = (
     "grant real-time scheduling: on a robot PC add '@realtime - rtprio 99' and '@realtime - memlock unlimited' to "
@@ -143,6 +145,9 @@ class LoopTimer:
         self._lock = threading.Lock()
         self._count = 0
         self.deadline_misses = 0
+        self.jitter_counts = np.zeros(len(JITTER_EDGES_US) + 1, dtype=np.int64)
+        """Periods per jitter bucket since the loop started (``JITTER_EDGES_US``), binned by ``stats``."""
+        self._binned = 1  # wake-ups whose period is in jitter_counts (the first wake-up has none)
 
     def record(self, wake_ns: int) -> None:
         """Note one cycle's wake-up time (monotonic ns)."""
@@ -161,6 +166,7 @@ class LoopTimer:
         wakes = all_wakes[(start + np.arange(n)) % len(all_wakes)]
         periods = np.diff(wakes) / 1e3
         jitter = np.abs(periods - self.period_ns / 1e3)
+        self._bin(jitter, count)
         rate = (n - 1) / ((wakes[-1] - wakes[0]) / 1e9)
         p50, p99 = np.percentile(periods, [50, 99])
         j50, j99 = np.percentile(jitter, [50, 99])
@@ -175,6 +181,28 @@ class LoopTimer:
             float(jitter.max()),
             self.deadline_misses,
         )
+
+
+    def _bin(self, window_jitter: np.ndarray, count: int) -> None:
+        """Add the periods of the window not binned yet to ``jitter_counts`` (a loop whose stats are read at least
+        once per window, as /diagnostics does every second, has every period binned)."""
+        with self._lock:
+            new = min(count - self._binned, len(window_jitter))
+            self._binned = count
+        if new > 0:
+            buckets = np.searchsorted(JITTER_EDGES_US, window_jitter[-new:], side="left")
+            self.jitter_counts += np.bincount(buckets, minlength=len(self.jitter_counts))
+
+
+def jitter_percentile_us(counts: Sequence[int], q: float) -> float:
+    """The upper edge of the histogram bucket holding the ``q``-th percentile of the binned jitter (``inf``: above the
+    last edge; NaN: nothing binned)."""
+    counts = np.asarray(counts, dtype=np.int64)
+    total = int(counts.sum())
+    if total == 0:
+        return float("nan")
+    bucket = int(np.searchsorted(np.cumsum(counts), q / 100 * total, side="left"))
+    return float(JITTER_EDGES_US[bucket]) if bucket < len(JITTER_EDGES_US) else float("inf")
 
 
 def set_timer_slack(ns: int) -> bool:
@@ -468,6 +496,7 @@ class LoopThread:
         grant = self.realtime
         values["loop.realtime"] = "pending" if grant is None else grant.describe()
         values["loop.realtime_granted"] = bool(grant is not None and grant.granted)
+        values["loop.jitter_histogram"] = " ".join(map(str, self.timer.jitter_counts))
         for generation, window in enumerate(self.gc_pauses):
             values[f"loop.gc{generation}_collections"] = window.count
             values.update({f"loop.gc{generation}_{k}": round(v, 1) for k, v in window.percentiles_us().items()})

@@ -10,15 +10,18 @@ import threading
 import time
 from collections.abc import Iterator
 
+import numpy as np
 import pytest
 
 from rh5_msgs_py.realtime import (
     GC_OVERDUE,
+    JITTER_EDGES_US,
     DeadlineLoop,
     GarbageCollection,
     LatencyWindow,
     LatestValue,
     LoopTimer,
+    jitter_percentile_us,
 )
 
 
@@ -87,6 +90,28 @@ def test_loop_timer_window_keeps_only_the_latest_cycles() -> None:
     for k in range(10):
         timer.record(k * 2_000_000 if k < 6 else 12_000_000 + (k - 6) * 1_000_000)
     assert timer.stats().rate_hz == pytest.approx(1000.0)
+
+
+def test_the_run_long_jitter_histogram_bins_every_period_once() -> None:
+    """Periods of 1000, 1005, 1040, 2500 (a miss) and 1000 us, read once per window: each lands in its bucket once,
+    also when stats() is called again without new wake-ups; the run's p99 and its periods over 2 ms follow."""
+    timer = LoopTimer(period_ns=1_000_000, window=3)
+    wake = 0
+    for period_us in (1000, 1005, 1040, 2500, 1000):
+        timer.record(wake)
+        wake += period_us * 1000
+        timer.stats()
+    timer.record(wake)
+    timer.stats()
+    timer.stats()
+    counts = timer.jitter_counts
+    assert counts.sum() == 5
+    expected = {0: 3, JITTER_EDGES_US.index(40): 1, JITTER_EDGES_US.index(2000): 1}  # <= 10, (30, 40], (1000, 2000]
+    assert {int(i): int(c) for i, c in enumerate(counts) if c} == expected
+    assert jitter_percentile_us(counts, 50) == 10.0
+    assert jitter_percentile_us(counts, 99) == 2000.0
+    assert int(counts[JITTER_EDGES_US.index(1000) + 1 :].sum()) == 1  # one period over 2 ms
+    assert np.isnan(jitter_percentile_us(np.zeros_like(counts), 99))
 
 
 def test_deadline_loop_runs_at_its_rate_with_now_and_period() -> None:

@@ -22,6 +22,7 @@ from rh5_bringup.report.load import (
     PoseSeries,
 )
 from rh5_msgs_py.names import JOINT_GROUPS, LINEAR_ACTUATOR_NAMES, SUBMECHANISMS
+from rh5_msgs_py.realtime import JITTER_EDGES_US, jitter_percentile_us
 
 MAX_GAP_S: Final = 0.05
 """A reference is interpolated only between samples at most this far apart (else the sample is left out)."""
@@ -311,6 +312,10 @@ class LoopTiming:
     """Telemetry-to-command latency (the control cycle: read to write), worst p99 over the reports."""
     cycle_p99_us: float = np.nan
     """Duration of the cycle's work, worst p99 over the reports."""
+    run_jitter_p99_us: float = np.nan
+    """Jitter p99 over the whole run, from the loop's run-long histogram (the upper edge of the bucket holding it)."""
+    periods_over_2ms: int = -1
+    """Periods longer than 2 ms over the whole run (-1: not reported)."""
 
 
 def _float(values: Mapping[str, str], key: str) -> float:
@@ -335,6 +340,7 @@ def loop_timing(diagnostics: Iterable[DiagnosticRecord]) -> list[LoopTiming]:
         misses = _float(reports[-1].values, "loop.deadline_misses")
         latency = np.array([_float(r.values, "latency.telemetry_to_command.p99_us") for r in reports])
         cycle = np.array([_float(r.values, "cycle.p99_us") for r in reports])
+        histogram = _jitter_histogram(reports[-1].values)
         out.append(
             LoopTiming(
                 node,
@@ -346,9 +352,20 @@ def loop_timing(diagnostics: Iterable[DiagnosticRecord]) -> list[LoopTiming]:
                 str(reports[-1].values.get("loop.realtime", "")),
                 _worst(latency[latency > 0]),
                 _worst(cycle[cycle > 0]),
+                jitter_percentile_us(histogram, 99) if histogram is not None else np.nan,
+                int(histogram[JITTER_EDGES_US.index(1000) + 1 :].sum()) if histogram is not None else -1,
             )
         )
     return out
+
+
+def _jitter_histogram(values: Mapping[str, str]) -> np.ndarray | None:
+    """The loop's run-long jitter histogram (``loop.jitter_histogram``), None when not reported."""
+    try:
+        counts = np.array([int(c) for c in values["loop.jitter_histogram"].split()], dtype=np.int64)
+    except (KeyError, ValueError):
+        return None
+    return counts if len(counts) == len(JITTER_EDGES_US) + 1 else None
 
 
 def _worst(values: FloatArray) -> float:
