@@ -42,6 +42,7 @@ def measure(seconds: float, keep_awake: bool) -> dict[str, float]:
     gc.disable()
     wakes = np.zeros(int(seconds * 1e9 / PERIOD_NS), dtype=np.int64)
     deadline = time.monotonic_ns() + PERIOD_NS
+    misses = 0
     for i in range(len(wakes)):
         remaining = deadline - time.monotonic_ns()
         if remaining > 0:
@@ -52,7 +53,9 @@ def measure(seconds: float, keep_awake: bool) -> dict[str, float]:
         deadline += PERIOD_NS
         finished = time.monotonic_ns()
         if finished > deadline:  # skip lost ticks, as the suite's DeadlineLoop does
-            deadline += ((finished - deadline) // PERIOD_NS + 1) * PERIOD_NS
+            missed = (finished - deadline) // PERIOD_NS + 1
+            misses += missed
+            deadline += missed * PERIOD_NS
     periods = np.diff(wakes) / 1e3
     return {
         "keep_awake": awake or "held",
@@ -60,7 +63,20 @@ def measure(seconds: float, keep_awake: bool) -> dict[str, float]:
         "jitter_p99_us": float(np.percentile(np.abs(periods - PERIOD_NS / 1e3), 99)),
         "period_max_us": float(periods.max()),
         "over_2ms": int((periods > TARGET_PERIOD_MAX_US).sum()),
+        "misses": int(misses),
     }
+
+
+def measure_floor(seconds: float, keep_awake: bool = True, cpu: int | None = None) -> dict[str, float]:
+    """The bare loop in a child process (on ``cpu`` if given), summarised as ``measure`` does."""
+    command = [sys.executable, __file__, "--child", "awake" if keep_awake else "plain", "--seconds", str(seconds)]
+    child = subprocess.Popen(command, stdout=subprocess.PIPE, text=True)
+    if cpu is not None:
+        os.sched_setaffinity(child.pid, {cpu})
+    out, _ = child.communicate()
+    if child.returncode != 0:
+        raise RuntimeError(f"the bare loop failed (exit {child.returncode})")
+    return json.loads(out)
 
 
 def _row(label: str, value: float, target: float, unit: str, higher_is_better: bool = False) -> str:
@@ -82,9 +98,8 @@ def main() -> None:
         return
     burners = [subprocess.Popen([sys.executable, "-c", BURN]) for _ in range(args.burners)]
     try:
-        for mode in ("plain", "awake"):
-            command = [sys.executable, __file__, "--child", mode, "--seconds", str(args.seconds)]
-            result = json.loads(subprocess.run(command, capture_output=True, text=True, check=True).stdout)
+        for keep_awake in (False, True):
+            result = measure_floor(args.seconds, keep_awake)
             print(
                 f"bare loop, SCHED_FIFO 50, {args.seconds:g} s, {args.burners} burners, "
                 f"PM QoS 0 us: {result['keep_awake']}"
