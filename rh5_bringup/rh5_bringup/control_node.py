@@ -49,7 +49,7 @@ class BoardTimeClocks:
 
     The boards count the simulation's time as /clock does (the time each sample was measured), and the cycle
     stamps its streams with it already. Each node's /clock subscription is dropped: with four nodes in the process,
-    every /clock message woke the executor four times, and each wake-up costs ~1.6 ms of interpreter time (the
+    every /clock message woke the executor four times, and each wake-up costs ~1.5 ms of interpreter time (the
     wait set holds every node's services), ~150 ms/s held from the cycle's interpreter lock in a 5 kg walk.
     """
 

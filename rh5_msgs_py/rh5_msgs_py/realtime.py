@@ -182,16 +182,16 @@ class LoopTimer:
             self.deadline_misses,
         )
 
-
     def _bin(self, window_jitter: np.ndarray, count: int) -> None:
         """Add the periods of the window not binned yet to ``jitter_counts`` (a loop whose stats are read at least
         once per window, as /diagnostics does every second, has every period binned)."""
-        with self._lock:
+        with self._lock:  # two readers may bin at once: each takes the periods after the other's
             new = min(count - self._binned, len(window_jitter))
+            if new <= 0:
+                return
             self._binned = count
-        if new > 0:
-            buckets = np.searchsorted(JITTER_EDGES_US, window_jitter[-new:], side="left")
-            self.jitter_counts += np.bincount(buckets, minlength=len(self.jitter_counts))
+        buckets = np.searchsorted(JITTER_EDGES_US, window_jitter[-new:], side="left")
+        self.jitter_counts += np.bincount(buckets, minlength=len(self.jitter_counts))
 
 
 def jitter_percentile_us(counts: Sequence[int], q: float) -> float:
