@@ -8,9 +8,11 @@ and a bad start-up (e.g. an invalid parameter) into exit code 2 with the reason.
 from __future__ import annotations
 
 import json
+import signal
 import sys
 from collections import Counter
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from typing import Any
 
 import rclpy
@@ -26,6 +28,7 @@ from rclpy.executors import (
 )
 from rclpy.node import Node
 from rclpy.publisher import Publisher
+from rclpy.signals import SignalHandlerOptions, install_signal_handlers
 from rclpy.subscription import Subscription
 from rclpy.timer import Timer
 
@@ -39,6 +42,7 @@ Applier = Callable[[Any], Callable[[], None] | None]
 """Checks a new parameter value (ValueError: refused) and returns what applies it once accepted."""
 SUMMARY_PREFIX = "RH5_SUMMARY "
 EXIT_BAD_START = 2
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 class SuiteNode(Node):
@@ -228,21 +232,41 @@ class GatedExecutor(SingleThreadedExecutor):
         handler.result()
 
 
+@contextmanager
+def _stops_deferred() -> Iterator[Callable[[], bool]]:
+    """While nodes are built, SIGINT and SIGTERM only note the stop (the caller ends once they exist).
+
+    With rclpy's handlers installed, a stop shuts the context down under a half-built node: its next rcl call
+    fails, and a stabilizer stopped while it created its services aborted (exit -6, a C++ thread never joined).
+    """
+    received: list[int] = []
+    previous = {sig: signal.signal(sig, lambda number, _frame: received.append(number)) for sig in STOP_SIGNALS}
+    try:
+        yield lambda: bool(received)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
 def run_node(factory: Callable[[], SuiteNode | Sequence[SuiteNode]], args: list[str] | None = None) -> None:
     """Run one node, or the nodes of one process (``factory`` returns them all), until SIGINT/SIGTERM; exit 0
     when stopped, 2 when it could not start. Each node prints its summary line when it stops (the first node
     last: a process hosting several nodes lists its host node first).
 
-    A stop that arrives while the node is still being built ends it cleanly too, with a summary
-    saying so (the launcher and tests may signal a node as soon as it shows up in the graph).
+    A stop that arrives while the nodes are being built takes effect once they exist: they stop at once, cleanly,
+    with their summaries (the launcher and tests may signal a node as soon as it shows up in the graph).
     """
     apply_safe_defaults()
-    rclpy.init(args=args if args is not None else sys.argv)
+    rclpy.init(args=args if args is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
     nodes: list[SuiteNode] = []
     stopped = False
     try:
-        built = factory()
+        with _stops_deferred() as stop_requested:
+            built = factory()
         nodes = [built] if isinstance(built, SuiteNode) else list(built)
+        if stop_requested():
+            raise KeyboardInterrupt
+        install_signal_handlers(SignalHandlerOptions.ALL)  # from here a stop wakes the executor, as rclpy.init's would
         for node in nodes:
             if node.appliers is None and any(not spec.read_only for spec in node.param_specs):
                 msg = f"{node.get_name()}: writable parameters but no apply_live (a set would be ignored)"

@@ -1,13 +1,17 @@
-"""The executor of a process with a real-time loop: every callback waits for the loop's slack first."""
+"""run_node's life cycle, and the executor of a process with a real-time loop: every callback waits for the loop's
+slack first."""
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import time
 from typing import Any
 
 import pytest
 
-from rh5_msgs_py.node_runtime import GatedExecutor
+from rh5_msgs_py.node_runtime import GatedExecutor, parse_summaries
 
 pytestmark = pytest.mark.ros
 
@@ -37,3 +41,34 @@ def test_the_gated_executor_runs_each_callback_only_after_its_gate(ros_graph: An
         node.destroy_node()
     assert events[:6] == ["gate", "callback"] * 3  # each callback behind its own gate
     assert fired[0] >= closed_until  # the first waited for the gate to open
+
+
+STOPPED_WHILE_BUILDING = """
+import os, signal
+from rh5_joint_stabilizer.stabilizer_node import StabilizerNode
+from rh5_msgs_py.node_runtime import run_node
+
+def build():
+    os.kill(os.getpid(), signal.SIG{name})  # the launcher saw the process and stops it: the node is not built yet
+    return StabilizerNode()
+
+run_node(build, ["stabilizer"])
+"""
+
+
+@pytest.mark.parametrize("name", ["INT", "TERM"])
+def test_a_stop_while_the_node_is_built_ends_it_cleanly_once_built(
+    ros_test_environment: dict[str, str], name: str
+) -> None:
+    """The stop waits for the node to exist, then ends it at once: exit 0 with the node's own summary (a stop
+    under rclpy's handlers shut the context down under the half-built node, which then aborted now and then)."""
+    child = subprocess.run(
+        [sys.executable, "-c", STOPPED_WHILE_BUILDING.format(name=name)],
+        check=False,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env=dict(os.environ),
+    )
+    assert child.returncode == 0, child.stderr[-2000:]
+    assert [s["node"] for s in parse_summaries(child.stdout)] == ["stabilizer"], child.stdout[-2000:]
