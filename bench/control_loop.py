@@ -41,7 +41,7 @@ from rh5_hyrodyn_mapper.model import joint_limits
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec, diagnostics_from_msg, joint_trajectory_to_msg
 from rh5_msgs_py.names import JOINT_NAMES
-from rh5_msgs_py.realtime import JITTER_EDGES_US, jitter_percentile_us
+from rh5_msgs_py.realtime import jitter_above_us, jitter_percentile_us, parse_jitter_histogram
 
 TARGET_RATE_HZ = 999.5
 TARGET_JITTER_P99_US = 100.0
@@ -175,13 +175,8 @@ def compare_with_floor(cycle: tuple[float, float], args: argparse.Namespace) -> 
 
 def _histogram_during(statuses: list[dict[str, str]]) -> np.ndarray | None:
     """The loop's jitter histogram over the measured reports (last minus first; None when not reported)."""
-    try:
-        first, last = (
-            np.array(s["loop.jitter_histogram"].split(), dtype=np.int64) for s in (statuses[0], statuses[-1])
-        )
-    except KeyError:
-        return None
-    return last - first
+    first, last = (parse_jitter_histogram(s.get("loop.jitter_histogram", "")) for s in (statuses[0], statuses[-1]))
+    return None if first is None or last is None else last - first
 
 
 def report(statuses: list[dict[str, str]], args: argparse.Namespace) -> tuple[float, float] | None:
@@ -224,7 +219,7 @@ def report(statuses: list[dict[str, str]], args: argparse.Namespace) -> tuple[fl
     print(f"  {'deadline misses during the run':<40} {missed:10d}   target 0")
     over = -1
     if run is not None:
-        over = int(run[JITTER_EDGES_US.index(1000) + 1 :].sum())
+        over = jitter_above_us(run, 1000)
         print(f"  {'periods over 2 ms during the run':<40} {over:10d}   target 0")
     if len(cycle):
         print(f"  {'cycle work p99 [us] (worst)':<40} {float(cycle.max()):10.2f}   (read to write)")

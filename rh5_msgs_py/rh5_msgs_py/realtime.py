@@ -194,6 +194,26 @@ class LoopTimer:
         self.jitter_counts += np.bincount(buckets, minlength=len(self.jitter_counts))
 
 
+def jitter_histogram_text(counts: Sequence[int]) -> str:
+    """The histogram as its /diagnostics value (``loop.jitter_histogram``): the counts, space-separated."""
+    return " ".join(map(str, counts))
+
+
+def parse_jitter_histogram(text: str) -> np.ndarray | None:
+    """The counts of a ``loop.jitter_histogram`` value; None when it is not one (another length, not integers)."""
+    try:
+        counts = np.array([int(c) for c in text.split()], dtype=np.int64)
+    except ValueError:
+        return None
+    return counts if len(counts) == len(JITTER_EDGES_US) + 1 else None
+
+
+def jitter_above_us(counts: Sequence[int], edge_us: int) -> int:
+    """The periods whose jitter exceeds ``edge_us`` (one of ``JITTER_EDGES_US``): at 1 kHz, 1000 counts the periods
+    over 2 ms."""
+    return int(np.asarray(counts)[JITTER_EDGES_US.index(edge_us) + 1 :].sum())
+
+
 def jitter_percentile_us(counts: Sequence[int], q: float) -> float:
     """The upper edge of the histogram bucket holding the ``q``-th percentile of the binned jitter (``inf``: above the
     last edge; NaN: nothing binned)."""
@@ -496,7 +516,7 @@ class LoopThread:
         grant = self.realtime
         values["loop.realtime"] = "pending" if grant is None else grant.describe()
         values["loop.realtime_granted"] = bool(grant is not None and grant.granted)
-        values["loop.jitter_histogram"] = " ".join(map(str, self.timer.jitter_counts))
+        values["loop.jitter_histogram"] = jitter_histogram_text(self.timer.jitter_counts)
         for generation, window in enumerate(self.gc_pauses):
             values[f"loop.gc{generation}_collections"] = window.count
             values.update({f"loop.gc{generation}_{k}": round(v, 1) for k, v in window.percentiles_us().items()})

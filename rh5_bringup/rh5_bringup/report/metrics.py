@@ -22,7 +22,7 @@ from rh5_bringup.report.load import (
     PoseSeries,
 )
 from rh5_msgs_py.names import JOINT_GROUPS, LINEAR_ACTUATOR_NAMES, SUBMECHANISMS
-from rh5_msgs_py.realtime import JITTER_EDGES_US, jitter_percentile_us
+from rh5_msgs_py.realtime import jitter_above_us, jitter_percentile_us, parse_jitter_histogram
 
 MAX_GAP_S: Final = 0.05
 """A reference is interpolated only between samples at most this far apart (else the sample is left out)."""
@@ -340,7 +340,7 @@ def loop_timing(diagnostics: Iterable[DiagnosticRecord]) -> list[LoopTiming]:
         misses = _float(reports[-1].values, "loop.deadline_misses")
         latency = np.array([_float(r.values, "latency.telemetry_to_command.p99_us") for r in reports])
         cycle = np.array([_float(r.values, "cycle.p99_us") for r in reports])
-        histogram = _jitter_histogram(reports[-1].values)
+        histogram = parse_jitter_histogram(reports[-1].values.get("loop.jitter_histogram", ""))
         out.append(
             LoopTiming(
                 node,
@@ -353,19 +353,10 @@ def loop_timing(diagnostics: Iterable[DiagnosticRecord]) -> list[LoopTiming]:
                 _worst(latency[latency > 0]),
                 _worst(cycle[cycle > 0]),
                 jitter_percentile_us(histogram, 99) if histogram is not None else np.nan,
-                int(histogram[JITTER_EDGES_US.index(1000) + 1 :].sum()) if histogram is not None else -1,
+                jitter_above_us(histogram, 1000) if histogram is not None else -1,
             )
         )
     return out
-
-
-def _jitter_histogram(values: Mapping[str, str]) -> np.ndarray | None:
-    """The loop's run-long jitter histogram (``loop.jitter_histogram``), None when not reported."""
-    try:
-        counts = np.array([int(c) for c in values["loop.jitter_histogram"].split()], dtype=np.int64)
-    except (KeyError, ValueError):
-        return None
-    return counts if len(counts) == len(JITTER_EDGES_US) + 1 else None
 
 
 def _worst(values: FloatArray) -> float:
