@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from loop_floor import measure_floor
+from loop_floor import measure_floor, steal_line
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
@@ -159,7 +159,7 @@ def compare_with_floor(cycle: tuple[float, float], args: argparse.Namespace) -> 
     """Run the bare loop on the cycle's CPU beside as many burners; print both per second, and their ratio."""
     burners = [subprocess.Popen([sys.executable, "-c", BURN], stdout=subprocess.DEVNULL) for _ in range(args.burners)]
     try:
-        floor = measure_floor(args.floor, cpu=sorted(os.sched_getaffinity(0))[-1])
+        floor = measure_floor(args.floor)
     finally:
         for burner in burners:
             burner.kill()
@@ -171,6 +171,7 @@ def compare_with_floor(cycle: tuple[float, float], args: argparse.Namespace) -> 
         ratio = f"{mine / theirs:6.2f}" if theirs > 0 else "   inf" if mine > 0 else "     -"
         print(f"  {label:<40} {mine:10.2f} {theirs:10.2f}   {ratio}")
     print(f"  {'bare loop jitter p99 [us]':<40} {'':>10} {floor['jitter_p99_us']:10.1f}")
+    print(f"  bare loop: {floor['over_2ms']} periods over 2 ms;" + steal_line(floor).removeprefix(" "))
 
 
 def _histogram_during(statuses: list[dict[str, str]]) -> np.ndarray | None:
