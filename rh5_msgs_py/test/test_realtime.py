@@ -293,3 +293,40 @@ def test_keep_cpus_awake_refused_says_why_and_the_grant_still_runs(monkeypatch: 
     grant = realtime.RealtimeGrant(50, 50, True, idle_wakeup=reason)
     assert grant.describe() == f"SCHED_FIFO 50, memory locked, CPU idle not limited ({reason})"
     assert realtime.RealtimeGrant(50, 50, True).describe() == "SCHED_FIFO 50, memory locked, CPUs kept from deep idle"
+
+
+_HEAP_SCRIPT = """
+import resource, sys
+from rh5_msgs_py.realtime import keep_heap
+
+def rss_mb():
+    with open("/proc/self/statm") as statm:
+        return int(statm.read().split()[1]) * resource.getpagesize() / 2**20
+
+start = rss_mb()
+kept = keep_heap(48 * 2**20) if sys.argv[1] == "kept" else None
+reserved = rss_mb()
+block = bytearray(32 * 2**20)
+del block
+print(kept, round(reserved - start), round(rss_mb() - reserved))
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's malloc")
+def test_keep_heap_faults_a_reserve_in_and_serves_big_blocks_from_it() -> None:
+    """In child processes (the tuning lasts for the process): with glibc's defaults a freed 32 MB block goes back
+    to the OS, so the next one is faulted in afresh; with a kept heap the reserve stays resident, and the block
+    comes from it without growing the process."""
+    import subprocess
+
+    def run(mode: str) -> list[str]:
+        out = subprocess.run([sys.executable, "-c", _HEAP_SCRIPT, mode], capture_output=True, text=True, check=True)
+        return out.stdout.split()
+
+    kept, reserved, grown = run("kept")
+    assert kept == "True"
+    assert int(reserved) >= 46  # the 48 MB reserve, resident
+    assert int(grown) <= 2  # the 32 MB block came from it, and freeing it kept it
+    _, reserved, grown = run("default")
+    assert int(reserved) <= 2
+    assert int(grown) <= 2  # glibc mapped the block for itself and unmapped it when freed
