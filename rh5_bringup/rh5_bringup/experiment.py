@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rh5_bringup.launcher import Bringup, load_bringup
+from rh5_bringup.service_calls import call_lifecycle, call_set_bool, call_trigger
 from rh5_bringup.session import SuiteSession, run_dir
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.progress import LiveLine
@@ -197,8 +198,6 @@ class _Monitor:
 
 
 def _call(session: SuiteSession, node: str, service: str, progress: Callable[[str], None], **kw: Any) -> str:
-    from rh5_bringup.cli import call_set_bool, call_trigger  # noqa: PLC0415
-
     name = session.service(node, service)
     if "value" in kw:
         ok, message = call_set_bool(session.node, name, kw["value"])
@@ -213,8 +212,6 @@ def _call(session: SuiteSession, node: str, service: str, progress: Callable[[st
 
 def _activate_driver(session: SuiteSession, progress: Callable[[str], None]) -> None:
     """The driver's lifecycle activate (it configured itself at start: autostart), i.e. drive the boards."""
-    from rh5_bringup.cli import call_lifecycle  # noqa: PLC0415
-
     name = session.service("driver", "change_state")
     ok, message = call_lifecycle(session.node, name, "activate")
     progress(f"driver/change_state: {message}")

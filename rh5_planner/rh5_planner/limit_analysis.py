@@ -28,7 +28,7 @@ import fnmatch
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Final
+from typing import Any, Final, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -39,8 +39,8 @@ from rh5_hyrodyn_mapper.model import JointLimits, joint_limits
 from rh5_msgs_py.names import ACTUATOR_INDEX, JOINT_GROUPS, JOINT_INDEX, JOINT_NAMES, SUBMECHANISMS
 from rh5_msgs_py.trajectory_file import TrajectoryData
 
-if TYPE_CHECKING:
-    from .problem import PlanResult
+from .cost_config import load_cost_config
+from .feet import FOOT_SIZE_M
 
 __all__ = [
     "ACTUATOR_KINDS",
@@ -55,6 +55,7 @@ __all__ = [
     "LimitAnalysis",
     "LimitScale",
     "LimitUsage",
+    "PlannedResult",
     "analyse",
     "contact_check",
     "match_joints",
@@ -64,8 +65,21 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
-FOOT_SIZE_M: Final = (0.200, 0.080)
-"""Sole support rectangle length x width (rh5_paper_facts.yaml legs.foot.support_polygon_m)."""
+
+class PlannedResult(Protocol):
+    """What the analysis reads of a planner result (:class:`rh5_planner.problem.PlanResult`): its trajectory and
+    whether it converged. A protocol, so that this module does not import the problem that imports it."""
+
+    @property
+    def converged(self) -> bool:
+        """Whether the solver met its stop threshold."""
+        ...
+
+    def to_trajectory_data(self) -> TrajectoryData:
+        """The trajectory file content of the plan."""
+        ...
+
+
 JOINT_KINDS: Final = ("position", "velocity", "torque")
 """Joint-space limit kinds; also the kinds :class:`LimitScale` scales."""
 ACTUATOR_KINDS: Final = ("stroke", "actuator_velocity", "force")
@@ -346,7 +360,7 @@ def _cell(usage: LimitUsage, i: int) -> str:
 # analysis
 
 
-def _trajectory(source: TrajectoryData | PlanResult) -> tuple[TrajectoryData, bool | None]:
+def _trajectory(source: TrajectoryData | PlannedResult) -> tuple[TrajectoryData, bool | None]:
     if isinstance(source, TrajectoryData):
         converged = source.solver_log.get("converged")
         return source, None if converged is None else bool(converged)
@@ -377,8 +391,6 @@ def contact_check(
     A contact knot without positive normal force fails both checks.
     """
     if cop_fraction is None or mu is None:
-        from .problem import load_cost_config  # noqa: PLC0415  (Crocoddyl only when the config is needed)
-
         cs = load_cost_config()["contact_stability"]
         cop_fraction = float(cs["cop_fraction"]) if cop_fraction is None else cop_fraction
         mu = float(cs["mu"]) if mu is None else mu
@@ -395,7 +407,7 @@ def contact_check(
 
 
 def analyse(
-    source: TrajectoryData | PlanResult,
+    source: TrajectoryData | PlannedResult,
     *,
     scale: LimitScale | None = None,
     tolerance: float = 1e-6,

@@ -58,10 +58,8 @@ JOINT_NAMES with q_index/v_index.
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import fnmatch
-import functools
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -73,7 +71,6 @@ import crocoddyl  # must come before anything that links pinocchio extensions (d
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
-import yaml
 
 from rh5_hyrodyn_mapper.model import build_model, joint_limits, model_hash, q_index, standing_configuration, v_index
 from rh5_msgs_py.names import FOOT_FRAMES, HAND_FRAMES, JOINT_GROUPS, JOINT_NAMES
@@ -81,7 +78,8 @@ from rh5_msgs_py.trajectory_file import TrajectoryData, save_trajectory
 
 from .actuator_bounds import ActuatorBounds
 from .actuator_constraints import ActuatorConstraints
-from .limit_analysis import FOOT_SIZE_M
+from .cost_config import COSTS_FILE, load_cost_config, motion_config
+from .feet import FOOT_SIZE_M
 from .motions import SIDES, KnotSpec, MotionSpec, Reference
 
 __all__ = [
@@ -107,28 +105,8 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
-COSTS_FILE: Final = Path(__file__).parent / "config" / "costs.yaml"
 ProgressCallback = Callable[[int, float, float], None]
 """``callback(iteration, cost, stop)`` called after every Box-FDDP iteration."""
-
-
-@functools.cache
-def _cost_config_cached(path: str) -> dict[str, Any]:
-    with open(path, encoding="utf-8") as file:
-        return yaml.safe_load(file)  # type: ignore[no-any-return]
-
-
-def load_cost_config(path: str | Path | None = None) -> dict[str, Any]:
-    """The cost configuration (config/costs.yaml by default), as a fresh dict."""
-    return copy.deepcopy(_cost_config_cached(str(path or COSTS_FILE)))
-
-
-def motion_config(name: str, config: Mapping[str, Any]) -> dict[str, Any]:
-    """``config`` with its ``motion_overrides[name]`` section merged in (per-term settings of one motion)."""
-    merged = copy.deepcopy(dict(config))
-    for term, settings in (config.get("motion_overrides") or {}).get(name, {}).items():
-        merged[term] = {**merged.get(term, {}), **settings} if isinstance(settings, Mapping) else settings
-    return merged
 
 
 # --------------------------------------------------------------------------------------------------
