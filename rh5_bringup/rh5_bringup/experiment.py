@@ -117,7 +117,7 @@ def planned_trajectory(settings: ExperimentSettings) -> tuple[Path, bool]:
     bar.finish("converged" if result.converged else "NOT converged")
     if not result.converged:
         log = result.solver_log
-        msg = f"{settings.motion} did not converge ({log.get('iterations')} iterations, stop {log.get('stop')})"
+        msg = f"{settings.motion} did not converge ({log.iterations} iterations, stop {log.stop_criterion})"
         raise ExperimentError(msg)
     cache.mkdir(parents=True, exist_ok=True)
     result.save(path)

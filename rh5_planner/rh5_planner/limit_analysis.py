@@ -41,6 +41,7 @@ from rh5_msgs_py.trajectory_file import TrajectoryData
 
 from .cost_config import load_cost_config
 from .feet import FOOT_SIZE_M
+from .solver_log import SolverLog
 
 __all__ = [
     "ACTUATOR_KINDS",
@@ -60,6 +61,7 @@ __all__ = [
     "contact_check",
     "match_joints",
     "side_free_name",
+    "solver_log_of",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -68,11 +70,11 @@ IntArray = npt.NDArray[np.int64]
 
 class PlannedResult(Protocol):
     """What the analysis reads of a planner result (:class:`rh5_planner.problem.PlanResult`): its trajectory and
-    whether it converged. A protocol, so that this module does not import the problem that imports it."""
+    its solver log. A protocol, so that this module does not import the problem that imports it."""
 
     @property
-    def converged(self) -> bool:
-        """Whether the solver met its stop threshold."""
+    def solver_log(self) -> SolverLog:
+        """What the solve did."""
         ...
 
     def to_trajectory_data(self) -> TrajectoryData:
@@ -360,11 +362,17 @@ def _cell(usage: LimitUsage, i: int) -> str:
 # analysis
 
 
-def _trajectory(source: TrajectoryData | PlannedResult) -> tuple[TrajectoryData, bool | None]:
+def solver_log_of(source: TrajectoryData | PlannedResult) -> SolverLog | None:
+    """The solver log of a plan or of a trajectory file (None: a file without one)."""
     if isinstance(source, TrajectoryData):
-        converged = source.solver_log.get("converged")
-        return source, None if converged is None else bool(converged)
-    return source.to_trajectory_data(), bool(source.converged)
+        return SolverLog.from_dict(source.solver_log) if source.solver_log else None
+    return source.solver_log
+
+
+def _trajectory(source: TrajectoryData | PlannedResult) -> tuple[TrajectoryData, SolverLog | None]:
+    """The trajectory and its solver log (None: a file without one)."""
+    data = source if isinstance(source, TrajectoryData) else source.to_trajectory_data()
+    return data, solver_log_of(source)
 
 
 def _usage(
@@ -419,7 +427,7 @@ def analyse(
     ``tolerance`` is relative: a value counts as a violation above (1 + tolerance) x limit. Torques are the
     N-1 controls (row k acts from knot k on) and are mapped to actuator forces at the configuration of knot k.
     """
-    data, converged = _trajectory(source)
+    data, log = _trajectory(source)
     scale = scale or LimitScale()
     q, v = data.joint_positions(), data.joint_velocities()
     tau = np.asarray(data.controls)
@@ -429,7 +437,8 @@ def analyse(
     actuator, error = _actuator_usage(q, v, tau, scale, tolerance)
     contact = contact_check(data, cop_fraction=cop_fraction, mu=mu)
     name = str(data.motion.get("name", "?"))
-    limited = bool((data.solver_log.get("actuator_limits") or {}).get("enforced"))
+    converged = None if log is None else log.converged
+    limited = log is not None and bool(log.actuator_limits.enforced)
     return LimitAnalysis(name, converged, joint, actuator, contact, scale, error, limited)
 
 

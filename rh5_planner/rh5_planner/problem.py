@@ -81,6 +81,7 @@ from .actuator_constraints import ActuatorConstraints
 from .cost_config import COSTS_FILE, load_cost_config, motion_config
 from .feet import FOOT_SIZE_M
 from .motions import SIDES, KnotSpec, MotionSpec, Reference
+from .solver_log import ActuatorLimitLog, RefineRound, SolverLog, StageLog
 
 __all__ = [
     "CONTACT_STABILITY_FORMS",
@@ -851,7 +852,7 @@ class PlanResult:
     contact_phases: npt.NDArray[np.bool_]
     cop: FloatArray
     phase_names: tuple[str, ...]
-    solver_log: Mapping[str, Any]
+    solver_log: SolverLog
     com: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
     xs_all: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
     """The solver's states at every node, impulse nodes included (a warm start for :func:`solve`'s ``guess``)."""
@@ -861,7 +862,7 @@ class PlanResult:
     @property
     def converged(self) -> bool:
         """Whether Box-FDDP met its stop threshold within the iteration cap."""
-        return bool(self.solver_log["converged"])
+        return self.solver_log.converged
 
     def to_trajectory_data(self) -> TrajectoryData:
         """The project's trajectory file content (joints reordered to JOINT_NAMES)."""
@@ -878,7 +879,7 @@ class PlanResult:
             cop=self.cop,
             motion={"name": self.motion.name, "kind": self.motion.kind, "parameters": self.motion.parameters()},
             model_hash=model_hash(),
-            solver_log=dict(self.solver_log),
+            solver_log=self.solver_log.to_dict(),
         )
 
     def save(self, path: str | Path) -> Path:
@@ -891,7 +892,7 @@ def _wrench(data: Any, name: str) -> FloatArray:
     return np.concatenate([force.linear, force.angular])
 
 
-def _extract(built: BuiltProblem, solver: crocoddyl.SolverBoxFDDP, log: Mapping[str, Any]) -> PlanResult:
+def _extract(built: BuiltProblem, solver: crocoddyl.SolverBoxFDDP, log: SolverLog) -> PlanResult:
     problem, specs, robot = built.problem, built.specs, built.robot
     model = robot.model
     xs_all = [np.array(x) for x in solver.xs]
@@ -992,7 +993,7 @@ def solve(
     sums = _cost_sums(built.problem)
     base = [{name: float(item.weight) for name, item in costs.costs.todict().items()} for costs in sums]
     xs, us, feasible = built.xs_guess, built.us_guess, False
-    iterations, stage_log = 0, []
+    iterations, stage_log = 0, list[StageLog]()
     t_solve, cpu_solve = time.perf_counter(), time.process_time()
     for k, stage in enumerate(stages):
         final = k == len(stages) - 1
@@ -1014,11 +1015,9 @@ def solve(
             built.actuators.refresh(xs, us)  # bounds at the previous stage's optimum (the first: at the guess)
         solved = bool(solver.solve(xs, us, max(1, budget), feasible, regularization)) or monitor.stalled
         iterations += monitor.iterations
-        stage_log.append(
-            {"scale": dict(stage.get("scale", {})), "iterations": monitor.iterations, "cost": float(solver.cost)}
-        )
+        stage_log.append(StageLog(dict(stage.get("scale", {})), monitor.iterations, float(solver.cost)))
         xs, us, feasible = list(solver.xs), list(solver.us), bool(solver.isFeasible)
-    actuator_log: dict[str, Any] = {"enforced": []}
+    actuator_log = ActuatorLimitLog()
     if built.actuators is not None:
         solved, extra, actuator_log = _refine_actuator_limits(
             built, solver, settings, config, solved=solved, offset=iterations
@@ -1029,41 +1028,38 @@ def solve(
     solver.th_stop = settings.stop_threshold
     knots = len(built.specs)
     converged = solved and bool(solver.isFeasible)
-    log = {
-        "solver": "BoxFDDP",
-        "iterations": iterations,
-        "cost": float(solver.cost),
-        "stop_criterion": float(solver.stop),
-        "stop_threshold": settings.stop_threshold,
-        "converged": converged,
-        "is_feasible": bool(solver.isFeasible),
-        "solve_time_s": solve_time,
-        "build_time_s": build_time,
-        "knots": knots,
-        "ms_per_knot_iteration": 1e3 * solve_time / max(1, knots * max(1, iterations)),
-        # CPU time of this process (all its threads): robust where other processes share the cores
-        "solve_cpu_s": solve_cpu,
-        "cpu_ms_per_knot_iteration": 1e3 * solve_cpu / max(1, knots * max(1, iterations)),
-        "stop_reason": ("gradient" if float(solver.stop) < settings.stop_threshold else "cost_stalled")
-        if converged
-        else "iteration_limit",
-        "stages": stage_log,
-        "nthreads": settings.nthreads,
-        "cost_terms": sorted(built.terms),
-        "mass_kg": robot_mass(built.robot),
-        "actuator_limits": actuator_log,
-        "warm_start": guess is not None,
-    }
     scaled = {
         f"{name}:{kind}": float(f[j])
         for kind, f in limit_factors(limit_scale).items()
         for j, name in enumerate(JOINT_NAMES)
         if f[j] != 1.0
     }
-    if scaled:
-        log["limit_factors"] = scaled
-    if not math.isfinite(log["cost"]):
-        log["converged"] = False
+    log = SolverLog(
+        solver="BoxFDDP",
+        iterations=iterations,
+        cost=float(solver.cost),
+        stop_criterion=float(solver.stop),
+        stop_threshold=settings.stop_threshold,
+        converged=converged and math.isfinite(float(solver.cost)),
+        is_feasible=bool(solver.isFeasible),
+        solve_time_s=solve_time,
+        build_time_s=build_time,
+        knots=knots,
+        ms_per_knot_iteration=1e3 * solve_time / max(1, knots * max(1, iterations)),
+        # CPU time of this process (all its threads): robust where other processes share the cores
+        solve_cpu_s=solve_cpu,
+        cpu_ms_per_knot_iteration=1e3 * solve_cpu / max(1, knots * max(1, iterations)),
+        stop_reason=("gradient" if float(solver.stop) < settings.stop_threshold else "cost_stalled")
+        if converged
+        else "iteration_limit",
+        stages=stage_log,
+        nthreads=settings.nthreads,
+        cost_terms=sorted(built.terms),
+        mass_kg=robot_mass(built.robot),
+        actuator_limits=actuator_log,
+        warm_start=guess is not None,
+        limit_factors=scaled or None,
+    )
     return _extract(built, solver, log)
 
 
@@ -1090,14 +1086,14 @@ def _refine_actuator_limits(
     *,
     solved: bool,
     offset: int,
-) -> tuple[bool, int, dict[str, Any]]:
+) -> tuple[bool, int, ActuatorLimitLog]:
     """Check the solution's exact actuator use at the knots and at 1 kHz; where a limit is exceeded, tighten the
     bounds there, refresh every bound at the solution and solve the final stage again (costs.yaml
     ``actuator_limits.refine_rounds`` times at most). Returns (solved, iterations spent, solver-log entry)."""
     actuators = built.actuators
     assert actuators is not None
     settings_al = config["actuator_limits"]
-    rounds, extra = [], 0
+    rounds, extra = list[RefineRound](), 0
     dt = built.motion.dt
     check = actuators.check_iterate(solver.xs, solver.us, dt)
     for _ in range(int(settings_al.get("refine_rounds", 0))):
@@ -1115,19 +1111,19 @@ def _refine_actuator_limits(
         solved = bool(solver.solve(xs, us, budget, bool(solver.isFeasible), settings.stage_regularization))
         solved = solved or monitor.stalled
         extra += monitor.iterations
-        rounds.append({"violations": len(check.over), "bounds_tightened": changed, "iterations": monitor.iterations})
+        rounds.append(RefineRound(len(check.over), changed, monitor.iterations))
         check = actuators.check_iterate(solver.xs, solver.us, dt)
-    log = {
-        "enforced": list(actuators.kinds),
-        "mechanisms": [unit.model.name for unit in actuators.bounds.units],
-        "form": "per-knot joint boxes at the iterate: joint-limit barrier (stroke, velocity), Box-FDDP box (force)",
-        "refreshes": actuators.refreshes,
-        "python_cpu_s": round(actuators.overhead_s, 4),
-        "refine_rounds": rounds,
-        "within_limits": check.ok,
-        "violations_left": len(check.over),
-        "peak_utilisation": check.summary(),
-    }
+    log = ActuatorLimitLog(
+        enforced=list(actuators.kinds),
+        mechanisms=[unit.model.name for unit in actuators.bounds.units],
+        form="per-knot joint boxes at the iterate: joint-limit barrier (stroke, velocity), Box-FDDP box (force)",
+        refreshes=actuators.refreshes,
+        python_cpu_s=round(actuators.overhead_s, 4),
+        refine_rounds=rounds,
+        within_limits=check.ok,
+        violations_left=len(check.over),
+        peak_utilisation=check.summary(),
+    )
     return solved, extra, log
 
 

@@ -48,7 +48,7 @@ def run(job: dict[str, Any]) -> int:
         )
         result = solve(get_motion(job["motion"], job["overrides"]), settings)
         result.save(job["file"])
-        emit("result", dict(result.solver_log))
+        emit("result", result.solver_log.to_dict())
     except Exception as err:  # reported to the node, which answers ~/plan with it
         emit("error", f"{type(err).__name__}: {err}")
         return 1
