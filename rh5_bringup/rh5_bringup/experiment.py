@@ -25,6 +25,7 @@ from rh5_bringup.launcher import Bringup, load_bringup
 from rh5_bringup.service_calls import call_lifecycle, call_set_bool, call_trigger
 from rh5_bringup.session import SuiteSession, run_dir
 from rh5_msgs_py import interfaces
+from rh5_msgs_py.diagnostic_keys import STABILIZER_STATUS, StabilizerKeys
 from rh5_msgs_py.progress import LiveLine
 
 if TYPE_CHECKING:
@@ -172,12 +173,12 @@ class _Monitor:
 
     def _on_diagnostics(self, msg: Any) -> None:
         for status in self._from_msg(msg):
-            if status.name == "rh5/stabilizer":
-                self.state = str(status.values.get("state", self.state))
-                self.reason = str(status.values.get("reason", ""))
-                self.rejected = str(status.values.get("trajectory_rejected", ""))
+            if status.name == STABILIZER_STATUS:
+                self.state = str(status.values.get(StabilizerKeys.STATE, self.state))
+                self.reason = str(status.values.get(StabilizerKeys.REASON, ""))
+                self.rejected = str(status.values.get(StabilizerKeys.TRAJECTORY_REJECTED, ""))
                 try:
-                    self.trajectory_duration_s = float(status.values.get("trajectory_duration_s", "none"))
+                    self.trajectory_duration_s = float(status.values.get(StabilizerKeys.TRAJECTORY_DURATION_S, "none"))
                 except ValueError:
                     self.trajectory_duration_s = None
 

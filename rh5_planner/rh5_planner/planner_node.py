@@ -47,6 +47,7 @@ from std_srvs.srv import Trigger
 
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import Level, Status, diagnostics_to_msg, status_to_msg
+from rh5_msgs_py.diagnostic_keys import PLANNER_STATUS
 from rh5_msgs_py.diagnostic_tasks import task_status
 from rh5_msgs_py.names import JOINT_NAMES
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
@@ -57,7 +58,6 @@ from .publishing import PlannedMessages, hold_messages, planned_messages
 from .solve_worker import LINE_PREFIX
 
 HOLD_DURATION_S: Final = 1.0
-STATUS_NAME: Final = "rh5/planner"
 CHILD_STOP_S: Final = 2.0
 
 
@@ -200,7 +200,7 @@ class PlannerNode(SuiteNode):
 
     def _status(self, level: Level, message: str, values: dict[str, Any]) -> None:
         with self._publish_lock:
-            self._publish_progress(status_to_msg(Status(STATUS_NAME, level, message, values)))
+            self._publish_progress(status_to_msg(Status(PLANNER_STATUS, level, message, values)))
         text = message if level == Level.OK else ("not converged" if level == Level.WARN else "planning failed")
         self._solver_status = task_status("planner", "solver", level, text, {**values, "detail": message})
 
