@@ -40,8 +40,8 @@ def _row(label: str, plan: PlanResult) -> str:
     contact = analysis.contact
     fz = plan.wrenches[plan.contact_phases][:, 2].min()
     return (
-        f"  {label:13s} {'converged' if plan.converged else 'NOT converged'} {log['iterations']:4d} it "
-        f"{log['solve_time_s']:6.1f} s | knots/1 kHz: {', '.join(peaks)} | joints over: {joint or 'none'} | "
+        f"  {label:13s} {'converged' if plan.converged else 'NOT converged'} {log.iterations:4d} it "
+        f"{log.solve_time_s:6.1f} s | knots/1 kHz: {', '.join(peaks)} | joints over: {joint or 'none'} | "
         f"CoP in {100 * contact.cop_inside_ratio:.1f} %, friction {100 * contact.friction_inside_ratio:.1f} %, "
         f"min f_z {fz:.0f} N"
     )

@@ -40,6 +40,7 @@ from rh5_bringup.launcher import SuiteRun, load_bringup, wait_for_nodes
 from rh5_hyrodyn_mapper.model import joint_limits
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec, diagnostics_from_msg, joint_trajectory_to_msg
+from rh5_msgs_py.diagnostic_keys import CONTROL_STATUS, DRIVER_STATUS, ControlKeys, LoopKeys
 from rh5_msgs_py.names import JOINT_NAMES
 from rh5_msgs_py.realtime import jitter_above_us, jitter_percentile_us, parse_jitter_histogram
 
@@ -122,7 +123,7 @@ def main() -> int:
         os.environ.update(run.env)
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
         node = rclpy.create_node("bench_control_loop")
-        observer = Observer(node, "rh5/driver" if args.separate else "rh5/control")
+        observer = Observer(node, DRIVER_STATUS if args.separate else CONTROL_STATUS)
         try:
             missing = wait_for_nodes(node, bringup.node_names())
             if missing:
@@ -176,7 +177,7 @@ def compare_with_floor(cycle: tuple[float, float], args: argparse.Namespace) -> 
 
 def _histogram_during(statuses: list[dict[str, str]]) -> np.ndarray | None:
     """The loop's jitter histogram over the measured reports (last minus first; None when not reported)."""
-    first, last = (parse_jitter_histogram(s.get("loop.jitter_histogram", "")) for s in (statuses[0], statuses[-1]))
+    first, last = (parse_jitter_histogram(s.get(LoopKeys.JITTER_HISTOGRAM, "")) for s in (statuses[0], statuses[-1]))
     return None if first is None or last is None else last - first
 
 
@@ -185,15 +186,17 @@ def report(statuses: list[dict[str, str]], args: argparse.Namespace) -> tuple[fl
     if len(statuses) < 2:
         print("too few diagnostics reports to judge", file=sys.stderr)
         return None
-    rate = values(statuses, "loop.rate_hz")
-    p50, p99, peak = (values(statuses, f"loop.jitter_{k}_us") for k in ("p50", "p99", "max"))
-    period_max = values(statuses, "loop.period_max_us")
-    misses = values(statuses, "loop.deadline_misses")
-    latency = values(statuses, "latency.telemetry_to_command.p99_us")
-    cycle = values(statuses, "cycle.p99_us")
+    rate = values(statuses, LoopKeys.RATE_HZ)
+    p50, p99, peak = (
+        values(statuses, key) for key in (LoopKeys.JITTER_P50_US, LoopKeys.JITTER_P99_US, LoopKeys.JITTER_MAX_US)
+    )
+    period_max = values(statuses, LoopKeys.PERIOD_MAX_US)
+    misses = values(statuses, LoopKeys.DEADLINE_MISSES)
+    latency = values(statuses, ControlKeys.telemetry_to_command("p99_us"))
+    cycle = values(statuses, ControlKeys.cycle("p99_us"))
     what = "three processes (driver loop)" if args.separate else "control process (one cycle)"
     print(f"\n{what}, {len(statuses)} one-second reports, {args.burners} CPU burners beside it")
-    print(f"  scheduling: {statuses[-1].get('loop.realtime', '?')}")
+    print(f"  scheduling: {statuses[-1].get(LoopKeys.REALTIME, '?')}")
     rows = [
         ("rate [Hz] (median of reports)", float(np.median(rate)), TARGET_RATE_HZ, ">="),
         ("jitter p50 [us] (median)", float(np.median(p50)), TARGET_JITTER_P99_US, "<="),
@@ -225,17 +228,17 @@ def report(statuses: list[dict[str, str]], args: argparse.Namespace) -> tuple[fl
     if len(cycle):
         print(f"  {'cycle work p99 [us] (worst)':<40} {float(cycle.max()):10.2f}   (read to write)")
         for stage in ("cpu", "read", "to_joints", "stabilize", "to_actuators", "write"):
-            p50, p99 = (values(statuses, f"cycle.{stage}.{k}_us") for k in ("p50", "p99"))
+            p50, p99 = (values(statuses, ControlKeys.cycle(k, stage)) for k in ("p50_us", "p99_us"))
             print(f"    {stage:<14} p50 {float(np.median(p50)):7.1f} us   p99 (worst) {float(p99.max()):7.1f} us")
         for generation in range(3):  # collections in the cycle's slack (rh5_msgs_py.realtime.GarbageCollection)
-            counts = values(statuses, f"loop.gc{generation}_collections")
-            p50, worst = (values(statuses, f"loop.gc{generation}_{k}_us") for k in ("p50", "max"))
+            counts = values(statuses, LoopKeys.gc_collections(generation))
+            p50, worst = (values(statuses, LoopKeys.gc_pause(generation, k)) for k in ("p50_us", "max_us"))
             if len(counts):
                 print(
                     f"    gc gen {generation}       p50 {float(np.median(p50)):7.1f} us   max (worst) "
                     f"{float(worst.max()):7.1f} us   {int(counts[-1] - counts[0])} collections"
                 )
-        dropped = values(statuses, "streams.dropped")
+        dropped = values(statuses, ControlKeys.STREAMS_DROPPED)
         print(f"  {'publisher drops during the run':<40} {int(dropped[-1] - dropped[0]):10d}")
     seconds = len(statuses) - 1  # one report a second
     return missed / seconds, over / seconds

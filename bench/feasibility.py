@@ -69,9 +69,9 @@ def main() -> None:
             bar.finish("converged" if result.converged else "NOT converged")
             analyses.append(analyse(result))
             timing.append(
-                f"- {name}: {log['knots']} knots, {log['iterations']} iterations, "
-                f"{'converged' if result.converged else 'NOT converged'} (stop {log['stop_criterion']:.1e}), "
-                f"solve {log['solve_time_s']:.1f} s, total {time.perf_counter() - start:.1f} s"
+                f"- {name}: {log.knots} knots, {log.iterations} iterations, "
+                f"{'converged' if result.converged else 'NOT converged'} (stop {log.stop_criterion:.1e}), "
+                f"solve {log.solve_time_s:.1f} s, total {time.perf_counter() - start:.1f} s"
             )
         if analyses:
             part = _table_text(f"Feasibility of the paper's motions: {title}", analyses, timing)

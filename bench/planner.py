@@ -157,17 +157,17 @@ def main() -> None:
         if paper:
             on_off_ratios.append(_on_off_row(name, results, paper, on_off))
         logs = [r.solver_log for r in results]
-        times = [log["solve_time_s"] for log in logs]
-        ms = statistics.median(log["ms_per_knot_iteration"] for log in logs)
+        times = [log.solve_time_s for log in logs]
+        ms = statistics.median(log.ms_per_knot_iteration for log in logs)
         median = statistics.median(times)
         total += median
         ratios.append(ms / talos_ms)
-        ours.append((name, logs[0]["knots"], ms))
+        ours.append((name, logs[0].knots, ms))
         if name == "walk_with_5kg_weights":
             walk_median = median
         at_t = "     -      -       -"
         if not args.no_matched:
-            knots = logs[0]["knots"]
+            knots = logs[0].knots
             if knots not in matched:
                 runs = [talos_walk(args.nthreads, args.max_iterations, knots) for _ in range(max(3, args.repeat))]
                 matched[knots] = (runs[0]["knots"], statistics.median(r["ms_per_knot_iteration"] for r in runs))
@@ -175,8 +175,8 @@ def main() -> None:
             matched_ratios.append(ms / ref_ms)
             at_t = f"{ref_knots:6d} {ref_ms:6.3f} {matched_ratios[-1]:7.2f}"
         print(
-            f"{name:26s} {logs[0]['knots']:5d} {logs[0]['iterations']:5d} {logs[0]['converged']!s:>5s} "
-            f"{logs[0]['stop_reason']:>12s} {min(times):7.3f} {median:7.3f} {ms:8.3f} {ms / talos_ms:6.2f} "
+            f"{name:26s} {logs[0].knots:5d} {logs[0].iterations:5d} {logs[0].converged!s:>5s} "
+            f"{logs[0].stop_reason:>12s} {min(times):7.3f} {median:7.3f} {ms:8.3f} {ms / talos_ms:6.2f} "
             f"{at_t}  {_violations(results[0])}"
         )
     print("ratio = our ms per knot-iteration / Talos's (target <= 1.0)")
@@ -233,19 +233,19 @@ def _horizon_figure(path: Path, talos: Sequence[tuple[int, float]], ours: Sequen
 def _on_off_row(name: str, on: Sequence[PlanResult], off: Sequence[PlanResult], rows: list[str]) -> float:
     """Append the table row of one motion solved with the actuator limits on and off; return the ratio of the
     median ms per knot-iteration (on / off)."""
-    ms_on = statistics.median(r.solver_log["ms_per_knot_iteration"] for r in on)
-    ms_off = statistics.median(r.solver_log["ms_per_knot_iteration"] for r in off)
-    cpu_on = statistics.median(r.solver_log["cpu_ms_per_knot_iteration"] for r in on)
-    cpu_off = statistics.median(r.solver_log["cpu_ms_per_knot_iteration"] for r in off)
-    s_on = statistics.median(r.solver_log["solve_time_s"] for r in on)
-    s_off = statistics.median(r.solver_log["solve_time_s"] for r in off)
+    ms_on = statistics.median(r.solver_log.ms_per_knot_iteration for r in on)
+    ms_off = statistics.median(r.solver_log.ms_per_knot_iteration for r in off)
+    cpu_on = statistics.median(r.solver_log.cpu_ms_per_knot_iteration for r in on)
+    cpu_off = statistics.median(r.solver_log.cpu_ms_per_knot_iteration for r in off)
+    s_on = statistics.median(r.solver_log.solve_time_s for r in on)
+    s_off = statistics.median(r.solver_log.solve_time_s for r in off)
 
     def peaks(plan: PlanResult) -> str:
         check = check_trajectory(plan.to_trajectory_data())
         return "/".join(f"{max(check.knots[k].max(), check.samples[k].max()):.2f}" for k in ACTUATOR_LIMIT_KINDS)
 
     rows.append(
-        f"{name:26s} {on[0].solver_log['iterations']:5d} {off[0].solver_log['iterations']:6d} {ms_on:10.3f} "
+        f"{name:26s} {on[0].solver_log.iterations:5d} {off[0].solver_log.iterations:6d} {ms_on:10.3f} "
         f"{ms_off:6.3f} {ms_on / ms_off:6.2f} {cpu_on:7.3f} {cpu_off:7.3f} {cpu_on / cpu_off:6.2f} {s_on:6.2f} "
         f"{s_off:6.2f}  {peaks(on[0])} / {peaks(off[0])}"
     )

@@ -36,7 +36,7 @@ def plan_walk() -> TrajectoryData:
     result = solve(get_motion("walk_with_5kg_weights"))
     log = result.solver_log
     print(
-        f"planned walk_with_5kg_weights: {log['iterations']} iterations, converged {log['converged']}, "
+        f"planned walk_with_5kg_weights: {log.iterations} iterations, converged {log.converged}, "
         f"{time.perf_counter() - started:.1f} s"
     )
     return result.to_trajectory_data()

@@ -30,6 +30,7 @@ from rh5_hyrodyn_mapper.mapper_node import MapperNode
 from rh5_joint_stabilizer.stabilizer_node import StabilizerNode
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import Level, Status, diagnostics_to_msg
+from rh5_msgs_py.diagnostic_keys import CONTROL_STATUS, HARDWARE_ID, ControlKeys
 from rh5_msgs_py.diagnostic_tasks import Increases, task_status
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
 from rh5_msgs_py.realtime import RealtimePublisher, pin_process, request_realtime
@@ -144,18 +145,14 @@ class ControlNode(SuiteNode):
     def diagnostics(self) -> dict[str, object]:
         """The cycle's timing, real-time grant, latency and publisher counts (the ``rh5/control`` values)."""
         values = self.loop.diagnostics()
-        values["helpers.realtime"] = self.helper_realtime.describe()
+        values[ControlKeys.HELPERS_REALTIME] = self.helper_realtime.describe()
         cycle = self.cycle
-        values.update(
-            {
-                f"latency.telemetry_to_command.{k}": round(v, 1)
-                for k, v in cycle.telemetry_to_command.percentiles_us().items()
-            }
-        )
-        values.update({f"cycle.{k}": round(v, 1) for k, v in cycle.compute.percentiles_us().items()})
-        values.update({f"cycle.cpu.{k}": round(v, 1) for k, v in cycle.cpu.percentiles_us().items()})
+        latency = cycle.telemetry_to_command.percentiles_us()
+        values.update({ControlKeys.telemetry_to_command(k): round(v, 1) for k, v in latency.items()})
+        values.update({ControlKeys.cycle(k): round(v, 1) for k, v in cycle.compute.percentiles_us().items()})
+        values.update({ControlKeys.cycle(k, "cpu"): round(v, 1) for k, v in cycle.cpu.percentiles_us().items()})
         for stage, window in cycle.stages.items():
-            values.update({f"cycle.{stage}.{k}": round(v, 1) for k, v in window.percentiles_us().items()})
+            values.update({ControlKeys.cycle(k, stage): round(v, 1) for k, v in window.percentiles_us().items()})
         values.update(self.streams.diagnostics())
         values.update({f"status_{k}": v for k, v in self.publisher.diagnostics().items()})
         return values
@@ -176,7 +173,7 @@ class ControlNode(SuiteNode):
             level, message = Level.WARN, f"running without real-time scheduling: {self.loop.realtime.reason}"
         else:
             level, message = Level.OK, "running"
-        status = Status("rh5/control", level, message, values, hardware_id="rh5")
+        status = Status(CONTROL_STATUS, level, message, values, hardware_id=HARDWARE_ID)
         statuses = [status, *self.task_statuses()]
         self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=self.stamp_ns()))
 

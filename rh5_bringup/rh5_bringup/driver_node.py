@@ -33,6 +33,7 @@ from rh5_bringup.transports import open_transport
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec, Level, Status, diagnostics_to_msg
+from rh5_msgs_py.diagnostic_keys import DRIVER_STATUS, HARDWARE_ID, DriverKeys, LoopKeys
 from rh5_msgs_py.diagnostic_tasks import Increases, task_status
 from rh5_msgs_py.names import ACTUATOR_NAMES
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
@@ -272,13 +273,13 @@ class DriverNode(SuiteNode, LifecycleNodeMixin):
         values: dict[str, object] = {
             "mode": core.mode.name,
             "enabled": core.enabled,
-            "estopped": core.estopped,
-            "safe_hold": core.safe_hold_reason,
+            DriverKeys.ESTOPPED: core.estopped,
+            DriverKeys.SAFE_HOLD: core.safe_hold_reason,
         }
         if self.loop is not None:
             values.update(self.loop.diagnostics())
         values.update({f"count.{k}": v for k, v in core.counts.items()})
-        values.update({f"clamped.{k}": v for k, v in core.clamped.items()})
+        values.update({f"{DriverKeys.CLAMPED_PREFIX}{k}": v for k, v in core.clamped.items()})
         decoder = self.transport.stats().decoder
         values["garbage_bytes"] = decoder.garbage_bytes
         for board in core.board_map:  # frame statistics of every board since start
@@ -291,7 +292,7 @@ class DriverNode(SuiteNode, LifecycleNodeMixin):
             values[f"board.{board.name}"] = f"frames={frames} crc={crc} lost={lost} malformed={bad}"
         errors = [core.board_map.boards[i].name for i in np.flatnonzero(core.readings.errors)]
         if errors:
-            values["board_errors"] = ", ".join(errors)
+            values[DriverKeys.BOARD_ERRORS] = ", ".join(errors)
         loop_error = None if self.loop is None else self.loop.error
         if core.safe_hold_reason or loop_error is not None:
             level, message = Level.ERROR, core.safe_hold_reason or f"loop died: {loop_error!r}"
@@ -299,7 +300,7 @@ class DriverNode(SuiteNode, LifecycleNodeMixin):
             level, message = Level.WARN, "emergency stop latched"
         else:
             level, message = Level.OK, "driving" if core.enabled else "boards hold (not enabled)"
-        status = Status("rh5/driver", level, message, values, hardware_id="rh5")
+        status = Status(DRIVER_STATUS, level, message, values, hardware_id=HARDWARE_ID)
         statuses = [status, *self.task_statuses(decoder)]
         self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=self.stamp_ns()))
 
@@ -318,7 +319,7 @@ class DriverNode(SuiteNode, LifecycleNodeMixin):
             new = grew("loop.misses", stats.deadline_misses)
             level, text = (Level.WARN, "deadline misses") if new > 0 else (Level.OK, "on time")
             # without the "loop." prefix: the report's loop table reads those keys from rh5/driver
-            timing = {k.removeprefix("loop."): v for k, v in self.loop.diagnostics().items()}
+            timing = {k.removeprefix(LoopKeys.PREFIX): v for k, v in self.loop.diagnostics().items()}
             out.append(task_status("driver", "loop", level, text, {"new_deadline_misses": int(new), **timing}))
         now = time.monotonic_ns()
         started = core.started_ns and now - core.started_ns > max(core.silence_timeout_ns, 200_000_000)

@@ -22,8 +22,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rh5_bringup.launcher import Bringup, load_bringup
+from rh5_bringup.service_calls import call_lifecycle, call_set_bool, call_trigger
 from rh5_bringup.session import SuiteSession, run_dir
 from rh5_msgs_py import interfaces
+from rh5_msgs_py.diagnostic_keys import STABILIZER_STATUS, StabilizerKeys
 from rh5_msgs_py.progress import LiveLine
 
 if TYPE_CHECKING:
@@ -116,7 +118,7 @@ def planned_trajectory(settings: ExperimentSettings) -> tuple[Path, bool]:
     bar.finish("converged" if result.converged else "NOT converged")
     if not result.converged:
         log = result.solver_log
-        msg = f"{settings.motion} did not converge ({log.get('iterations')} iterations, stop {log.get('stop')})"
+        msg = f"{settings.motion} did not converge ({log.iterations} iterations, stop {log.stop_criterion})"
         raise ExperimentError(msg)
     cache.mkdir(parents=True, exist_ok=True)
     result.save(path)
@@ -171,12 +173,12 @@ class _Monitor:
 
     def _on_diagnostics(self, msg: Any) -> None:
         for status in self._from_msg(msg):
-            if status.name == "rh5/stabilizer":
-                self.state = str(status.values.get("state", self.state))
-                self.reason = str(status.values.get("reason", ""))
-                self.rejected = str(status.values.get("trajectory_rejected", ""))
+            if status.name == STABILIZER_STATUS:
+                self.state = str(status.values.get(StabilizerKeys.STATE, self.state))
+                self.reason = str(status.values.get(StabilizerKeys.REASON, ""))
+                self.rejected = str(status.values.get(StabilizerKeys.TRAJECTORY_REJECTED, ""))
                 try:
-                    self.trajectory_duration_s = float(status.values.get("trajectory_duration_s", "none"))
+                    self.trajectory_duration_s = float(status.values.get(StabilizerKeys.TRAJECTORY_DURATION_S, "none"))
                 except ValueError:
                     self.trajectory_duration_s = None
 
@@ -197,8 +199,6 @@ class _Monitor:
 
 
 def _call(session: SuiteSession, node: str, service: str, progress: Callable[[str], None], **kw: Any) -> str:
-    from rh5_bringup.cli import call_set_bool, call_trigger  # noqa: PLC0415
-
     name = session.service(node, service)
     if "value" in kw:
         ok, message = call_set_bool(session.node, name, kw["value"])
@@ -213,8 +213,6 @@ def _call(session: SuiteSession, node: str, service: str, progress: Callable[[st
 
 def _activate_driver(session: SuiteSession, progress: Callable[[str], None]) -> None:
     """The driver's lifecycle activate (it configured itself at start: autostart), i.e. drive the boards."""
-    from rh5_bringup.cli import call_lifecycle  # noqa: PLC0415
-
     name = session.service("driver", "change_state")
     ok, message = call_lifecycle(session.node, name, "activate")
     progress(f"driver/change_state: {message}")

@@ -41,6 +41,7 @@ from rh5_bringup.transports import open_transport
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import Level, Status, diagnostics_to_msg, to_time_msg, wrench_to_msg
+from rh5_msgs_py.diagnostic_keys import PHYSICS_TASK
 from rh5_msgs_py.diagnostic_tasks import Increases, task_status
 from rh5_msgs_py.names import ACTUATOR_NAMES, FOOT_FRAMES, NUM_JOINTS
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
@@ -213,7 +214,7 @@ class SimHardwareNode(SuiteNode):
             level, text = Level.WARN, "simulation slower than real time"
         else:
             level, text = Level.OK, "running"
-        return [task_status("sim_hardware", "physics", level, text, values)]
+        return [task_status(interfaces.SIM_HARDWARE_NODE, PHYSICS_TASK, level, text, values)]
 
     def _publish_status(self) -> None:
         statuses = self.task_statuses()

@@ -36,6 +36,7 @@ from typing import Any, Final
 import numpy as np
 
 from rh5_msgs_py import interfaces
+from rh5_msgs_py.diagnostic_keys import ControlKeys
 from rh5_msgs_py.names import ACTUATOR_NAMES, JOINT_NAMES, NUM_ACTUATORS, NUM_JOINTS
 
 __all__ = ["STREAMS", "StreamPublisherProcess", "main"]
@@ -174,7 +175,7 @@ class StreamPublisherProcess:
     def diagnostics(self) -> dict[str, object]:
         """``streams.*`` values for /diagnostics."""
         counts = self.poll_counts()
-        values: dict[str, object] = {"streams.handed_over": self.sequence, "streams.dropped": self.dropped}
+        values: dict[str, object] = {"streams.handed_over": self.sequence, ControlKeys.STREAMS_DROPPED: self.dropped}
         values.update({f"streams.published.{name}": n for name, n in counts.items()})
         values["streams.process_alive"] = self.alive
         if self.error is not None:

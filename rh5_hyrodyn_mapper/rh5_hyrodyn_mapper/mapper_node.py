@@ -21,6 +21,7 @@ from rh5_hyrodyn_mapper.mapping import RobotMapper
 from rh5_hyrodyn_mapper.model.urdf import generate_urdf
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec, Level, Status, diagnostics_to_msg, time_to_ns
+from rh5_msgs_py.diagnostic_keys import HARDWARE_ID, MAPPER_STATUS, MapperKeys
 from rh5_msgs_py.diagnostic_tasks import Increases, task_status
 from rh5_msgs_py.names import ACTUATOR_NAMES, JOINT_NAMES
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
@@ -127,12 +128,12 @@ class MapperNode(SuiteNode):
     def publish_status(self) -> None:
         self.status_gate()
         level = Level.WARN if self.rejected or self.clamped else Level.OK
-        values: dict[str, object] = {f"rejected.{k}": n for k, n in self.rejected.items()}
-        values.update({f"clamped.{k}": n for k, n in self.clamped.items()})
+        values: dict[str, object] = {f"{MapperKeys.REJECTED_PREFIX}{k}": n for k, n in self.rejected.items()}
+        values.update({f"{MapperKeys.CLAMPED_PREFIX}{k}": n for k, n in self.clamped.items()})
         for topic, window in self.core.latency.items():
             values.update({f"latency.{topic}.{k}": round(x, 1) for k, x in window.percentiles_us().items()})
         message = "ok" if level == Level.OK else "commands clamped or rejected since start"
-        status = Status("rh5/mapper", level, message, values, hardware_id="rh5")
+        status = Status(MAPPER_STATUS, level, message, values, hardware_id=HARDWARE_ID)
         statuses = [status, *self.task_statuses()]
         self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=self.stamp_ns()))
 

@@ -28,6 +28,7 @@ from rh5_joint_stabilizer.goal_check import Tolerances
 from rh5_joint_stabilizer.reference import PlannedTrajectory, TrajectoryRejectedError, validate_trajectory
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec, Level, Status, diagnostics_to_msg, joint_trajectory_from_cdr
+from rh5_msgs_py.diagnostic_keys import HARDWARE_ID, STABILIZER_STATUS, StabilizerKeys
 from rh5_msgs_py.diagnostic_tasks import task_status
 from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
@@ -329,10 +330,10 @@ class StabilizerNode(SuiteNode):
         rms, peak = self.tracking.rms_and_max()
         trajectory = self.core.trajectory
         values: dict[str, object] = {
-            "state": self.core.state.value,
-            "reason": self.core.last_reason,
-            "trajectory_duration_s": round(trajectory.duration, 6) if trajectory is not None else "none",
-            "trajectory_rejected": self.core.rejection,
+            StabilizerKeys.STATE: self.core.state.value,
+            StabilizerKeys.REASON: self.core.last_reason,
+            StabilizerKeys.TRAJECTORY_DURATION_S: round(trajectory.duration, 6) if trajectory is not None else "none",
+            StabilizerKeys.TRAJECTORY_REJECTED: self.core.rejection,
         }
         if self.loop is not None:
             values.update(self.loop.diagnostics())
@@ -348,8 +349,9 @@ class StabilizerNode(SuiteNode):
             Level.WARN if self.core.state == State.HOLDING and "requested" not in self.core.last_reason else Level.OK
         )
         if self.loop is not None and self.loop.error is not None:
-            level, values["loop_error"] = Level.ERROR, repr(self.loop.error)
-        status = Status("rh5/stabilizer", level, self.core.last_reason or self.core.state.value, values, "rh5")
+            level, values[StabilizerKeys.LOOP_ERROR] = Level.ERROR, repr(self.loop.error)
+        message = self.core.last_reason or self.core.state.value
+        status = Status(STABILIZER_STATUS, level, message, values, HARDWARE_ID)
         statuses = [status, *self.task_statuses(peak)]
         # on the node's clock: the simulation's under use_sim_time, as every stamp of the suite then is
         self._publish_diagnostics(diagnostics_to_msg(statuses, stamp_ns=self.stamp_ns()))

@@ -12,13 +12,14 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from rh5_msgs_py.conversions import Level, Status
+from rh5_msgs_py.diagnostic_keys import HARDWARE_ID, task_name
 
-HARDWARE_ID = "rh5"
+__all__ = ["HARDWARE_ID", "Increases", "task_status"]
 
 
 def task_status(node: str, task: str, level: Level, message: str, values: Mapping[str, object] | None = None) -> Status:
     """The status of ``task`` of ``node``: named ``"<node>: <task>"`` as diagnostic_updater names them."""
-    return Status(f"{node}: {task}", level, message, dict(values or {}), HARDWARE_ID)
+    return Status(task_name(node, task), level, message, dict(values or {}), HARDWARE_ID)
 
 
 class Increases:

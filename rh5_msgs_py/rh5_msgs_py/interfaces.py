@@ -1,4 +1,5 @@
-"""Topic names, service names, message types and QoS profiles of the suite.
+"""Topic names, service names, message types and QoS profiles of the suite; the /diagnostics names and keys other
+processes read (from :mod:`rh5_msgs_py.diagnostic_keys`).
 
 Names are relative (no leading slash) so that a namespace given at launch moves the
 whole suite; ``/diagnostics`` stays absolute as in every ROS 2 system. 1 kHz streams
@@ -12,6 +13,24 @@ import importlib
 from typing import Final, NamedTuple
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from rh5_msgs_py.diagnostic_keys import (  # noqa: F401  (re-exported: the /diagnostics names and keys)
+    CONTROL_STATUS,
+    DRIVER_STATUS,
+    HARDWARE_ID,
+    MAPPER_STATUS,
+    PHYSICS_TASK,
+    PLANNER_STATUS,
+    STABILIZER_STATUS,
+    ControlKeys,
+    DriverKeys,
+    LoopKeys,
+    MapperKeys,
+    Percentile,
+    StabilizerKeys,
+    task_name,
+    task_prefix,
+)
 
 STREAM_QOS: Final = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,

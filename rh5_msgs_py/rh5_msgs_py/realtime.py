@@ -30,6 +30,8 @@ from typing import ClassVar, Final, Generic, TypeVar
 
 import numpy as np
 
+from rh5_msgs_py.diagnostic_keys import LoopKeys, Percentile
+
 T = TypeVar("T")
 PR_SET_TIMERSLACK = 29
 
@@ -107,6 +109,21 @@ class LoopStats:
         return {k: round(v, 2) if isinstance(v, float) else v for k, v in self.__dict__.items()}
 
 
+def loop_stats_values(stats: LoopStats) -> dict[str, object]:
+    """``stats`` as ``loop.*`` values for /diagnostics (floats rounded as ``LoopStats.as_dict`` rounds them)."""
+    return {
+        LoopKeys.CYCLES: stats.cycles,
+        LoopKeys.RATE_HZ: round(stats.rate_hz, 2),
+        LoopKeys.PERIOD_P50_US: round(stats.period_p50_us, 2),
+        LoopKeys.PERIOD_P99_US: round(stats.period_p99_us, 2),
+        LoopKeys.PERIOD_MAX_US: round(stats.period_max_us, 2),
+        LoopKeys.JITTER_P50_US: round(stats.jitter_p50_us, 2),
+        LoopKeys.JITTER_P99_US: round(stats.jitter_p99_us, 2),
+        LoopKeys.JITTER_MAX_US: round(stats.jitter_max_us, 2),
+        LoopKeys.DEADLINE_MISSES: stats.deadline_misses,
+    }
+
+
 class LatencyWindow:
     """The latest durations (processing times, latencies) in ns, for p50/p99/max on /diagnostics."""
 
@@ -130,7 +147,7 @@ class LatencyWindow:
         """Durations recorded since the start (the window keeps the latest)."""
         return self._count
 
-    def percentiles_us(self) -> dict[str, float]:
+    def percentiles_us(self) -> dict[Percentile, float]:
         """p50, p99 and max of the window in microseconds (empty window: zeros)."""
         window = self._ns[: min(self._count, len(self._ns))]
         if not len(window):
@@ -547,14 +564,14 @@ class LoopThread:
 
     def diagnostics(self) -> dict[str, object]:
         """``loop.*`` values for /diagnostics: timing, the real-time grant and the garbage collector's pauses."""
-        values: dict[str, object] = {f"loop.{k}": v for k, v in self.stats().as_dict().items()}
+        values = loop_stats_values(self.stats())
         grant = self.realtime
-        values["loop.realtime"] = "pending" if grant is None else grant.describe()
-        values["loop.realtime_granted"] = bool(grant is not None and grant.granted)
-        values["loop.jitter_histogram"] = jitter_histogram_text(self.timer.jitter_counts)
+        values[LoopKeys.REALTIME] = "pending" if grant is None else grant.describe()
+        values[LoopKeys.REALTIME_GRANTED] = bool(grant is not None and grant.granted)
+        values[LoopKeys.JITTER_HISTOGRAM] = jitter_histogram_text(self.timer.jitter_counts)
         for generation, window in enumerate(self.gc_pauses):
-            values[f"loop.gc{generation}_collections"] = window.count
-            values.update({f"loop.gc{generation}_{k}": round(v, 1) for k, v in window.percentiles_us().items()})
+            values[LoopKeys.gc_collections(generation)] = window.count
+            values.update({LoopKeys.gc_pause(generation, k): round(v, 1) for k, v in window.percentiles_us().items()})
         return values
 
     def _run(self) -> None:

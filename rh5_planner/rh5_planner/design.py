@@ -30,6 +30,7 @@ from .limit_analysis import (
     analyse,
     match_joints,
     side_free_name,
+    solver_log_of,
 )
 from .motions import MotionSpec
 from .problem import PlanResult, SolverSettings
@@ -305,12 +306,13 @@ def improve_design(
         analysis = analyse(plan, scale=scale)
         converged = bool(analysis.converged)
         done, how = task(plan) if task is not None else (True, "")
+        log = solver_log_of(plan)  # a plan, or a trajectory file (analyse takes both)
         step = DesignStep(
             scale=scale,
             converged=converged,
             feasible=converged and done and analysis.feasible(tuple(required)),
             violations=analysis.violations(),
-            iterations=int(plan.solver_log.get("iterations", 0)),
+            iterations=log.iterations if log is not None else 0,
             seconds=time.perf_counter() - start,
             analysis=analysis,
             task=how,

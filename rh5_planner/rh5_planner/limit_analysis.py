@@ -28,7 +28,7 @@ import fnmatch
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Final
+from typing import Any, Final, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -39,8 +39,9 @@ from rh5_hyrodyn_mapper.model import JointLimits, joint_limits
 from rh5_msgs_py.names import ACTUATOR_INDEX, JOINT_GROUPS, JOINT_INDEX, JOINT_NAMES, SUBMECHANISMS
 from rh5_msgs_py.trajectory_file import TrajectoryData
 
-if TYPE_CHECKING:
-    from .problem import PlanResult
+from .cost_config import load_cost_config
+from .feet import FOOT_SIZE_M
+from .solver_log import SolverLog
 
 __all__ = [
     "ACTUATOR_KINDS",
@@ -55,17 +56,32 @@ __all__ = [
     "LimitAnalysis",
     "LimitScale",
     "LimitUsage",
+    "PlannedResult",
     "analyse",
     "contact_check",
     "match_joints",
     "side_free_name",
+    "solver_log_of",
 ]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
-FOOT_SIZE_M: Final = (0.200, 0.080)
-"""Sole support rectangle length x width (rh5_paper_facts.yaml legs.foot.support_polygon_m)."""
+
+class PlannedResult(Protocol):
+    """What the analysis reads of a planner result (:class:`rh5_planner.problem.PlanResult`): its trajectory and
+    its solver log. A protocol, so that this module does not import the problem that imports it."""
+
+    @property
+    def solver_log(self) -> SolverLog:
+        """What the solve did."""
+        ...
+
+    def to_trajectory_data(self) -> TrajectoryData:
+        """The trajectory file content of the plan."""
+        ...
+
+
 JOINT_KINDS: Final = ("position", "velocity", "torque")
 """Joint-space limit kinds; also the kinds :class:`LimitScale` scales."""
 ACTUATOR_KINDS: Final = ("stroke", "actuator_velocity", "force")
@@ -346,11 +362,17 @@ def _cell(usage: LimitUsage, i: int) -> str:
 # analysis
 
 
-def _trajectory(source: TrajectoryData | PlanResult) -> tuple[TrajectoryData, bool | None]:
+def solver_log_of(source: TrajectoryData | PlannedResult) -> SolverLog | None:
+    """The solver log of a plan or of a trajectory file (None: a file without one)."""
     if isinstance(source, TrajectoryData):
-        converged = source.solver_log.get("converged")
-        return source, None if converged is None else bool(converged)
-    return source.to_trajectory_data(), bool(source.converged)
+        return SolverLog.from_dict(source.solver_log) if source.solver_log else None
+    return source.solver_log
+
+
+def _trajectory(source: TrajectoryData | PlannedResult) -> tuple[TrajectoryData, SolverLog | None]:
+    """The trajectory and its solver log (None: a file without one)."""
+    data = source if isinstance(source, TrajectoryData) else source.to_trajectory_data()
+    return data, solver_log_of(source)
 
 
 def _usage(
@@ -377,8 +399,6 @@ def contact_check(
     A contact knot without positive normal force fails both checks.
     """
     if cop_fraction is None or mu is None:
-        from .problem import load_cost_config  # noqa: PLC0415  (Crocoddyl only when the config is needed)
-
         cs = load_cost_config()["contact_stability"]
         cop_fraction = float(cs["cop_fraction"]) if cop_fraction is None else cop_fraction
         mu = float(cs["mu"]) if mu is None else mu
@@ -395,7 +415,7 @@ def contact_check(
 
 
 def analyse(
-    source: TrajectoryData | PlanResult,
+    source: TrajectoryData | PlannedResult,
     *,
     scale: LimitScale | None = None,
     tolerance: float = 1e-6,
@@ -407,7 +427,7 @@ def analyse(
     ``tolerance`` is relative: a value counts as a violation above (1 + tolerance) x limit. Torques are the
     N-1 controls (row k acts from knot k on) and are mapped to actuator forces at the configuration of knot k.
     """
-    data, converged = _trajectory(source)
+    data, log = _trajectory(source)
     scale = scale or LimitScale()
     q, v = data.joint_positions(), data.joint_velocities()
     tau = np.asarray(data.controls)
@@ -417,7 +437,8 @@ def analyse(
     actuator, error = _actuator_usage(q, v, tau, scale, tolerance)
     contact = contact_check(data, cop_fraction=cop_fraction, mu=mu)
     name = str(data.motion.get("name", "?"))
-    limited = bool((data.solver_log.get("actuator_limits") or {}).get("enforced"))
+    converged = None if log is None else log.converged
+    limited = log is not None and bool(log.actuator_limits.enforced)
     return LimitAnalysis(name, converged, joint, actuator, contact, scale, error, limited)
 
 

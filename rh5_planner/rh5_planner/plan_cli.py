@@ -33,6 +33,7 @@ from .motions import MOTIONS, VERIFIED_MOTIONS, MotionError, MotionSpec, get_mot
 if TYPE_CHECKING:
     from .limit_analysis import LimitAnalysis
     from .problem import PlanResult, SolverSettings
+    from .solver_log import ActuatorLimitLog
 
 __all__ = ["ProgressBar", "main", "parse_overrides"]
 
@@ -156,7 +157,7 @@ def _solve(motion: MotionSpec, args: argparse.Namespace, stream: IO[str]) -> Pla
     stream.write(f"{motion.name}: building and solving ({motion.n_knots} knot intervals)...\n")
     result = solve(motion, _settings(args, bar))
     log = result.solver_log
-    bar.finish("converged" if result.converged else f"NOT converged (stop {log['stop_criterion']:.2e})")
+    bar.finish("converged" if result.converged else f"NOT converged (stop {log.stop_criterion:.2e})")
     return result
 
 
@@ -166,11 +167,11 @@ def _summary(result: PlanResult, analysis: LimitAnalysis, files: Sequence[Path])
     log = result.solver_log
     lines = [
         f"motion: {result.motion.name} ({result.motion.kind}), {len(result.times)} knots, "
-        f"{result.times[-1]:.2f} s, mass {log.get('mass_kg', float('nan')):.1f} kg",
-        f"solver: {'converged' if result.converged else 'NOT converged'} after {log['iterations']} iterations, "
-        f"cost {log['cost']:.6g}, stop {log['stop_criterion']:.2e}, solve {log['solve_time_s']:.2f} s",
+        f"{result.times[-1]:.2f} s, mass {log.mass_kg:.1f} kg",
+        f"solver: {'converged' if result.converged else 'NOT converged'} after {log.iterations} iterations, "
+        f"cost {log.cost:.6g}, stop {log.stop_criterion:.2e}, solve {log.solve_time_s:.2f} s",
         "",
-        _actuator_line(log),
+        _actuator_line(log.actuator_limits),
         "",
         FeasibilityTable([analysis]).to_text().rstrip(),
         "",
@@ -188,17 +189,16 @@ def _summary(result: PlanResult, analysis: LimitAnalysis, files: Sequence[Path])
     return "\n".join(lines)
 
 
-def _actuator_line(log: Any) -> str:
+def _actuator_line(entry: ActuatorLimitLog) -> str:
     """The solver log's actuator limits in one line: what was enforced and the peak use at the knots and 1 kHz."""
-    entry = log.get("actuator_limits") or {}
-    if not entry.get("enforced"):
+    if not entry.enforced:
         return "actuator limits: not in the problem (the paper's cost set; --set actuator_limits=true adds them)"
     peaks = ", ".join(
         f"{kind} {p['1khz'][0]} {100 * max(p['knots'][1], p['1khz'][1]):.0f} %"
-        for kind, p in entry.get("peak_utilisation", {}).items()
+        for kind, p in (entry.peak_utilisation or {}).items()
     )
-    verdict = "within" if entry.get("within_limits") else f"{entry.get('violations_left')} samples over"
-    kinds = ", ".join(entry["enforced"])
+    verdict = "within" if entry.within_limits else f"{entry.violations_left} samples over"
+    kinds = ", ".join(entry.enforced)
     return f"actuator limits: {kinds} enforced, {verdict} Table I at knots and 1 kHz (peaks: {peaks})"
 
 

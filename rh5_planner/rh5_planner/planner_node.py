@@ -14,10 +14,10 @@ Services (std_srvs/Trigger):
   ``busy: planning <motion>``. Motions outside VERIFIED_MOTIONS are planned too, with ``"verified": false``.
 * ``~/load`` reads ``trajectory_file`` and publishes it the same way.
 
-Concurrency: the solve runs in a child Python process (Crocoddyl holds the GIL for a whole Box-FDDP
-solve, so a thread would stall the node's services for up to half a second at a time). A worker thread
-of the node reads the child's progress lines, publishes them, then loads the saved file and publishes
-the plan; ``~/plan`` is a coroutine that awaits the worker's result, so the node's single-threaded
+Concurrency: the solve runs in a child Python process, :mod:`rh5_planner.solve_worker` (Crocoddyl holds the
+GIL for a whole Box-FDDP solve, so a thread would stall the node's services for up to half a second at a time).
+A worker thread of the node reads the child's progress lines, publishes them, then loads the saved file and
+publishes the plan; ``~/plan`` is a coroutine that awaits the worker's result, so the node's single-threaded
 executor keeps answering ``~/load``, the parameter services and further ``~/plan`` calls meanwhile. The
 child ignores SIGINT (the node stops it when it is destroyed) and exits if the node dies.
 
@@ -47,6 +47,7 @@ from std_srvs.srv import Trigger
 
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import Level, Status, diagnostics_to_msg, status_to_msg
+from rh5_msgs_py.diagnostic_keys import PLANNER_STATUS
 from rh5_msgs_py.diagnostic_tasks import task_status
 from rh5_msgs_py.names import JOINT_NAMES
 from rh5_msgs_py.node_runtime import SuiteNode, run_node
@@ -54,45 +55,10 @@ from rh5_msgs_py.trajectory_file import SUFFIX, TrajectoryFileError, load_trajec
 
 from .motions import VERIFIED_MOTIONS, MotionError, MotionSpec, get_motion
 from .publishing import PlannedMessages, hold_messages, planned_messages
+from .solve_worker import LINE_PREFIX
 
 HOLD_DURATION_S: Final = 1.0
-STATUS_NAME: Final = "rh5/planner"
 CHILD_STOP_S: Final = 2.0
-_LINE_PREFIX: Final = "RH5_PLAN "
-
-# The solver process: one JSON job on argv, "RH5_PLAN {json}" lines on stdout (progress, then result or error).
-_SOLVER_SCRIPT: Final = r"""
-import json, os, signal, sys
-signal.signal(signal.SIGINT, signal.SIG_IGN)
-job = json.loads(sys.argv[1])
-parent = os.getppid()
-
-def emit(kind, value):
-    sys.stdout.write("RH5_PLAN " + json.dumps({kind: value}) + "\n")
-    sys.stdout.flush()
-
-try:
-    from rh5_planner.motions import get_motion
-    from rh5_planner.problem import SolverSettings, solve
-
-    def progress(iteration, cost, stop):
-        if os.getppid() != parent:
-            os._exit(3)
-        emit("progress", [iteration, cost, stop])
-
-    settings = SolverSettings(
-        max_iterations=job["max_iterations"],
-        stop_threshold=job["stop_threshold"],
-        nthreads=job["nthreads"],
-        callback=progress,
-    )
-    result = solve(get_motion(job["motion"], job["overrides"]), settings)
-    result.save(job["file"])
-    emit("result", dict(result.solver_log))
-except Exception as err:
-    emit("error", f"{type(err).__name__}: {err}")
-    sys.exit(1)
-"""
 
 
 @dataclass(frozen=True)
@@ -116,7 +82,7 @@ class _Job:
             "stop_threshold": self.stop_threshold,
             "nthreads": self.nthreads,
         }
-        return [sys.executable, "-c", _SOLVER_SCRIPT, json.dumps(job)]
+        return [sys.executable, "-m", "rh5_planner.solve_worker", json.dumps(job)]
 
 
 class _BadParameterError(ValueError):
@@ -234,7 +200,7 @@ class PlannerNode(SuiteNode):
 
     def _status(self, level: Level, message: str, values: dict[str, Any]) -> None:
         with self._publish_lock:
-            self._publish_progress(status_to_msg(Status(STATUS_NAME, level, message, values)))
+            self._publish_progress(status_to_msg(Status(PLANNER_STATUS, level, message, values)))
         text = message if level == Level.OK else ("not converged" if level == Level.WARN else "planning failed")
         self._solver_status = task_status("planner", "solver", level, text, {**values, "detail": message})
 
@@ -314,9 +280,9 @@ class PlannerNode(SuiteNode):
         error = ""
         assert child.stdout is not None
         for line in child.stdout:
-            if not line.startswith(_LINE_PREFIX):
+            if not line.startswith(LINE_PREFIX):
                 continue
-            entry = json.loads(line[len(_LINE_PREFIX) :])
+            entry = json.loads(line[len(LINE_PREFIX) :])
             if "progress" in entry:
                 iteration, cost, stop = entry["progress"]
                 self._status(

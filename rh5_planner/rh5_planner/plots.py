@@ -30,7 +30,8 @@ from rh5_hyrodyn_mapper.model import joint_limits
 from rh5_msgs_py.names import ACTUATOR_INDEX, JOINT_GROUPS, JOINT_INDEX, SUBMECHANISMS
 from rh5_msgs_py.trajectory_file import NQ, TrajectoryData
 
-from .limit_analysis import FOOT_SIZE_M, JOINT_KINDS, LimitScale, side_free_name
+from .feet import FOOT_SIZE_M
+from .limit_analysis import JOINT_KINDS, LimitScale, side_free_name
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

@@ -58,10 +58,8 @@ JOINT_NAMES with q_index/v_index.
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import fnmatch
-import functools
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -73,7 +71,6 @@ import crocoddyl  # must come before anything that links pinocchio extensions (d
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
-import yaml
 
 from rh5_hyrodyn_mapper.model import build_model, joint_limits, model_hash, q_index, standing_configuration, v_index
 from rh5_msgs_py.names import FOOT_FRAMES, HAND_FRAMES, JOINT_GROUPS, JOINT_NAMES
@@ -81,8 +78,10 @@ from rh5_msgs_py.trajectory_file import TrajectoryData, save_trajectory
 
 from .actuator_bounds import ActuatorBounds
 from .actuator_constraints import ActuatorConstraints
-from .limit_analysis import FOOT_SIZE_M
+from .cost_config import COSTS_FILE, load_cost_config, motion_config
+from .feet import FOOT_SIZE_M
 from .motions import SIDES, KnotSpec, MotionSpec, Reference
+from .solver_log import ActuatorLimitLog, RefineRound, SolverLog, StageLog
 
 __all__ = [
     "CONTACT_STABILITY_FORMS",
@@ -107,28 +106,8 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
-COSTS_FILE: Final = Path(__file__).parent / "config" / "costs.yaml"
 ProgressCallback = Callable[[int, float, float], None]
 """``callback(iteration, cost, stop)`` called after every Box-FDDP iteration."""
-
-
-@functools.cache
-def _cost_config_cached(path: str) -> dict[str, Any]:
-    with open(path, encoding="utf-8") as file:
-        return yaml.safe_load(file)  # type: ignore[no-any-return]
-
-
-def load_cost_config(path: str | Path | None = None) -> dict[str, Any]:
-    """The cost configuration (config/costs.yaml by default), as a fresh dict."""
-    return copy.deepcopy(_cost_config_cached(str(path or COSTS_FILE)))
-
-
-def motion_config(name: str, config: Mapping[str, Any]) -> dict[str, Any]:
-    """``config`` with its ``motion_overrides[name]`` section merged in (per-term settings of one motion)."""
-    merged = copy.deepcopy(dict(config))
-    for term, settings in (config.get("motion_overrides") or {}).get(name, {}).items():
-        merged[term] = {**merged.get(term, {}), **settings} if isinstance(settings, Mapping) else settings
-    return merged
 
 
 # --------------------------------------------------------------------------------------------------
@@ -873,7 +852,7 @@ class PlanResult:
     contact_phases: npt.NDArray[np.bool_]
     cop: FloatArray
     phase_names: tuple[str, ...]
-    solver_log: Mapping[str, Any]
+    solver_log: SolverLog
     com: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
     xs_all: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
     """The solver's states at every node, impulse nodes included (a warm start for :func:`solve`'s ``guess``)."""
@@ -883,7 +862,7 @@ class PlanResult:
     @property
     def converged(self) -> bool:
         """Whether Box-FDDP met its stop threshold within the iteration cap."""
-        return bool(self.solver_log["converged"])
+        return self.solver_log.converged
 
     def to_trajectory_data(self) -> TrajectoryData:
         """The project's trajectory file content (joints reordered to JOINT_NAMES)."""
@@ -900,7 +879,7 @@ class PlanResult:
             cop=self.cop,
             motion={"name": self.motion.name, "kind": self.motion.kind, "parameters": self.motion.parameters()},
             model_hash=model_hash(),
-            solver_log=dict(self.solver_log),
+            solver_log=self.solver_log.to_dict(),
         )
 
     def save(self, path: str | Path) -> Path:
@@ -913,7 +892,7 @@ def _wrench(data: Any, name: str) -> FloatArray:
     return np.concatenate([force.linear, force.angular])
 
 
-def _extract(built: BuiltProblem, solver: crocoddyl.SolverBoxFDDP, log: Mapping[str, Any]) -> PlanResult:
+def _extract(built: BuiltProblem, solver: crocoddyl.SolverBoxFDDP, log: SolverLog) -> PlanResult:
     problem, specs, robot = built.problem, built.specs, built.robot
     model = robot.model
     xs_all = [np.array(x) for x in solver.xs]
@@ -1014,7 +993,7 @@ def solve(
     sums = _cost_sums(built.problem)
     base = [{name: float(item.weight) for name, item in costs.costs.todict().items()} for costs in sums]
     xs, us, feasible = built.xs_guess, built.us_guess, False
-    iterations, stage_log = 0, []
+    iterations, stage_log = 0, list[StageLog]()
     t_solve, cpu_solve = time.perf_counter(), time.process_time()
     for k, stage in enumerate(stages):
         final = k == len(stages) - 1
@@ -1036,11 +1015,9 @@ def solve(
             built.actuators.refresh(xs, us)  # bounds at the previous stage's optimum (the first: at the guess)
         solved = bool(solver.solve(xs, us, max(1, budget), feasible, regularization)) or monitor.stalled
         iterations += monitor.iterations
-        stage_log.append(
-            {"scale": dict(stage.get("scale", {})), "iterations": monitor.iterations, "cost": float(solver.cost)}
-        )
+        stage_log.append(StageLog(dict(stage.get("scale", {})), monitor.iterations, float(solver.cost)))
         xs, us, feasible = list(solver.xs), list(solver.us), bool(solver.isFeasible)
-    actuator_log: dict[str, Any] = {"enforced": []}
+    actuator_log = ActuatorLimitLog()
     if built.actuators is not None:
         solved, extra, actuator_log = _refine_actuator_limits(
             built, solver, settings, config, solved=solved, offset=iterations
@@ -1051,41 +1028,38 @@ def solve(
     solver.th_stop = settings.stop_threshold
     knots = len(built.specs)
     converged = solved and bool(solver.isFeasible)
-    log = {
-        "solver": "BoxFDDP",
-        "iterations": iterations,
-        "cost": float(solver.cost),
-        "stop_criterion": float(solver.stop),
-        "stop_threshold": settings.stop_threshold,
-        "converged": converged,
-        "is_feasible": bool(solver.isFeasible),
-        "solve_time_s": solve_time,
-        "build_time_s": build_time,
-        "knots": knots,
-        "ms_per_knot_iteration": 1e3 * solve_time / max(1, knots * max(1, iterations)),
-        # CPU time of this process (all its threads): robust where other processes share the cores
-        "solve_cpu_s": solve_cpu,
-        "cpu_ms_per_knot_iteration": 1e3 * solve_cpu / max(1, knots * max(1, iterations)),
-        "stop_reason": ("gradient" if float(solver.stop) < settings.stop_threshold else "cost_stalled")
-        if converged
-        else "iteration_limit",
-        "stages": stage_log,
-        "nthreads": settings.nthreads,
-        "cost_terms": sorted(built.terms),
-        "mass_kg": robot_mass(built.robot),
-        "actuator_limits": actuator_log,
-        "warm_start": guess is not None,
-    }
     scaled = {
         f"{name}:{kind}": float(f[j])
         for kind, f in limit_factors(limit_scale).items()
         for j, name in enumerate(JOINT_NAMES)
         if f[j] != 1.0
     }
-    if scaled:
-        log["limit_factors"] = scaled
-    if not math.isfinite(log["cost"]):
-        log["converged"] = False
+    log = SolverLog(
+        solver="BoxFDDP",
+        iterations=iterations,
+        cost=float(solver.cost),
+        stop_criterion=float(solver.stop),
+        stop_threshold=settings.stop_threshold,
+        converged=converged and math.isfinite(float(solver.cost)),
+        is_feasible=bool(solver.isFeasible),
+        solve_time_s=solve_time,
+        build_time_s=build_time,
+        knots=knots,
+        ms_per_knot_iteration=1e3 * solve_time / max(1, knots * max(1, iterations)),
+        # CPU time of this process (all its threads): robust where other processes share the cores
+        solve_cpu_s=solve_cpu,
+        cpu_ms_per_knot_iteration=1e3 * solve_cpu / max(1, knots * max(1, iterations)),
+        stop_reason=("gradient" if float(solver.stop) < settings.stop_threshold else "cost_stalled")
+        if converged
+        else "iteration_limit",
+        stages=stage_log,
+        nthreads=settings.nthreads,
+        cost_terms=sorted(built.terms),
+        mass_kg=robot_mass(built.robot),
+        actuator_limits=actuator_log,
+        warm_start=guess is not None,
+        limit_factors=scaled or None,
+    )
     return _extract(built, solver, log)
 
 
@@ -1112,14 +1086,14 @@ def _refine_actuator_limits(
     *,
     solved: bool,
     offset: int,
-) -> tuple[bool, int, dict[str, Any]]:
+) -> tuple[bool, int, ActuatorLimitLog]:
     """Check the solution's exact actuator use at the knots and at 1 kHz; where a limit is exceeded, tighten the
     bounds there, refresh every bound at the solution and solve the final stage again (costs.yaml
     ``actuator_limits.refine_rounds`` times at most). Returns (solved, iterations spent, solver-log entry)."""
     actuators = built.actuators
     assert actuators is not None
     settings_al = config["actuator_limits"]
-    rounds, extra = [], 0
+    rounds, extra = list[RefineRound](), 0
     dt = built.motion.dt
     check = actuators.check_iterate(solver.xs, solver.us, dt)
     for _ in range(int(settings_al.get("refine_rounds", 0))):
@@ -1137,19 +1111,19 @@ def _refine_actuator_limits(
         solved = bool(solver.solve(xs, us, budget, bool(solver.isFeasible), settings.stage_regularization))
         solved = solved or monitor.stalled
         extra += monitor.iterations
-        rounds.append({"violations": len(check.over), "bounds_tightened": changed, "iterations": monitor.iterations})
+        rounds.append(RefineRound(len(check.over), changed, monitor.iterations))
         check = actuators.check_iterate(solver.xs, solver.us, dt)
-    log = {
-        "enforced": list(actuators.kinds),
-        "mechanisms": [unit.model.name for unit in actuators.bounds.units],
-        "form": "per-knot joint boxes at the iterate: joint-limit barrier (stroke, velocity), Box-FDDP box (force)",
-        "refreshes": actuators.refreshes,
-        "python_cpu_s": round(actuators.overhead_s, 4),
-        "refine_rounds": rounds,
-        "within_limits": check.ok,
-        "violations_left": len(check.over),
-        "peak_utilisation": check.summary(),
-    }
+    log = ActuatorLimitLog(
+        enforced=list(actuators.kinds),
+        mechanisms=[unit.model.name for unit in actuators.bounds.units],
+        form="per-knot joint boxes at the iterate: joint-limit barrier (stroke, velocity), Box-FDDP box (force)",
+        refreshes=actuators.refreshes,
+        python_cpu_s=round(actuators.overhead_s, 4),
+        refine_rounds=rounds,
+        within_limits=check.ok,
+        violations_left=len(check.over),
+        peak_utilisation=check.summary(),
+    )
     return solved, extra, log
 
 

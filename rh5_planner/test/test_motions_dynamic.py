@@ -79,11 +79,11 @@ def _sole_positions(plan: PlanResult) -> np.ndarray:
 def test_verified(plan: PlanResult) -> None:
     assert plan.motion.name in VERIFIED_MOTIONS
     log = plan.solver_log
-    assert log["converged"], log
-    assert log["stop_reason"] in ("gradient", "cost_stalled")
+    assert log.converged, log
+    assert log.stop_reason in ("gradient", "cost_stalled")
     # the jump's push-off holds the knee actuators at their speed bound (actuator limits, issue 14): ~144 iterations;
     # the balancing motions ~20
-    assert log["iterations"] < (200 if plan.motion.kind == "jump" else 150)
+    assert log.iterations < (200 if plan.motion.kind == "jump" else 150)
 
 
 def test_actuator_limits_hold(plan: PlanResult) -> None:
@@ -91,8 +91,8 @@ def test_actuator_limits_hold(plan: PlanResult) -> None:
     assert plan.motion.actuator_limits
     check = check_trajectory(plan.to_trajectory_data())
     assert check.ok, check.over[:5]
-    assert plan.solver_log["actuator_limits"]["within_limits"]
-    assert plan.solver_log["actuator_limits"]["enforced"] == ["stroke", "velocity", "force"]
+    assert plan.solver_log.actuator_limits.within_limits
+    assert plan.solver_log.actuator_limits.enforced == ["stroke", "velocity", "force"]
 
 
 def test_cop_and_friction(plan: PlanResult) -> None:
@@ -176,7 +176,7 @@ def test_obstacle_jump_converges_with_stable_contacts() -> None:
     Velocity limits are not kept (the paper's feasibility table: the knees need ~7x theirs)."""
     plan = solve(OBSTACLE_JUMP, SolverSettings(max_iterations=150))
     assert plan.converged, plan.solver_log
-    assert plan.solver_log["iterations"] < 130
+    assert plan.solver_log.iterations < 130
     contact = plan.contact_phases
     fz = plan.wrenches[..., 2][contact]
     assert fz.min() > 0.0

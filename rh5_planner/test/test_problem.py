@@ -71,11 +71,11 @@ def plan(request: pytest.FixtureRequest) -> PlanResult:
 
 def _assert_converged(plan: PlanResult, max_iterations: int) -> None:
     log = plan.solver_log
-    assert log["converged"], log
+    assert log.converged, log
     # Box-FDDP's gradient test, or the cost stalled over full steps (SolverSettings.cost_tolerance)
-    assert log["stop_criterion"] < STOP or log["stop_reason"] == "cost_stalled"
-    assert log["iterations"] <= max_iterations, log
-    assert math.isfinite(log["cost"])
+    assert log.stop_criterion < STOP or log.stop_reason == "cost_stalled"
+    assert log.iterations <= max_iterations, log
+    assert math.isfinite(log.cost)
 
 
 def test_squat_converges(squat: PlanResult) -> None:
@@ -89,7 +89,7 @@ def test_iterations_are_counted_as_run() -> None:
     plan = solve(SQUAT, SolverSettings(max_iterations=100, callback=lambda it, _cost, _stop: reports.append(it)))
     log = plan.solver_log
     assert reports == list(range(1, len(reports) + 1))
-    assert log["iterations"] == len(reports) == sum(stage["iterations"] for stage in log["stages"])
+    assert log.iterations == len(reports) == sum(stage.iterations for stage in log.stages)
 
 
 def test_fast_squats_converge(fast_squats: PlanResult) -> None:
@@ -113,8 +113,8 @@ def test_initial_regularisation_changes_the_path_not_the_optimum() -> None:
         SolverSettings(max_iterations=150, stop_threshold=STOP, guess_regularization=1e-9, stage_regularization=1e-9),
     )
     _assert_converged(own, 80)
-    assert own.solver_log["iterations"] != ours.solver_log["iterations"]
-    assert own.solver_log["cost"] == pytest.approx(ours.solver_log["cost"], rel=1e-6)
+    assert own.solver_log.iterations != ours.solver_log.iterations
+    assert own.solver_log.cost == pytest.approx(ours.solver_log.cost, rel=1e-6)
     np.testing.assert_allclose(own.xs, ours.xs, atol=1e-3)
 
 
@@ -174,9 +174,9 @@ def test_actuator_limits_hold(plan: PlanResult) -> None:
     set put the knee actuators of the walk and the squat 28 % and 1 % over their speed)."""
     check = check_trajectory(plan.to_trajectory_data())
     assert check.ok, check.over[:5]
-    log = plan.solver_log["actuator_limits"]
-    assert log["within_limits"]
-    assert log["enforced"] == ["stroke", "velocity", "force"]
+    log = plan.solver_log.actuator_limits
+    assert log.within_limits
+    assert log.enforced == ["stroke", "velocity", "force"]
 
 
 def test_torques_within_box(plan: PlanResult) -> None:

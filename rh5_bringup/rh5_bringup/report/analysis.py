@@ -21,6 +21,7 @@ from rh5_bringup.report.metrics import (
     detect_fall,
     faults,
     group_errors,
+    is_stabilizer_status,
     loop_timing,
     stabilizer_transitions,
     stream_timing,
@@ -103,7 +104,7 @@ def analyse(recording: Recording, extra: Sequence[str] = ()) -> Analysis:
     rec = recording
     notes = list(rec.notes)
     transitions = stabilizer_transitions(rec.diagnostics)
-    reports = [d.t for d in rec.diagnostics if d.name.rstrip("/").endswith("stabilizer")]
+    reports = [d.t for d in rec.diagnostics if is_stabilizer_status(d.name)]
     first_playing = next((tr.t for tr in transitions if tr.state == "playing"), None)
     planned = _latest_before(rec.planned_joints, first_playing)
     time_zero = trajectory_time_zero(transitions, reports, rec.joint_commands, planned)

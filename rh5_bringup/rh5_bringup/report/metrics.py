@@ -21,6 +21,17 @@ from rh5_bringup.report.load import (
     PlannedBase,
     PoseSeries,
 )
+from rh5_msgs_py.diagnostic_keys import (
+    PHYSICS_TASK,
+    ControlKeys,
+    DriverKeys,
+    LoopKeys,
+    MapperKeys,
+    StabilizerKeys,
+    task_name,
+    task_prefix,
+)
+from rh5_msgs_py.interfaces import SIM_HARDWARE_NODE, STABILIZER_NODE
 from rh5_msgs_py.names import JOINT_GROUPS, LINEAR_ACTUATOR_NAMES, SUBMECHANISMS
 from rh5_msgs_py.realtime import jitter_above_us, jitter_percentile_us, parse_jitter_histogram
 
@@ -329,18 +340,18 @@ def loop_timing(diagnostics: Iterable[DiagnosticRecord]) -> list[LoopTiming]:
     """Per diagnostic status with ``loop.*`` keys: median rate, worst p99 / max jitter, last deadline misses."""
     per_node: dict[str, list[DiagnosticRecord]] = {}
     for d in diagnostics:
-        if "loop.rate_hz" in d.values:
+        if LoopKeys.RATE_HZ in d.values:
             per_node.setdefault(d.name, []).append(d)
     out = []
     for node, reports in per_node.items():
-        rates = np.array([_float(r.values, "loop.rate_hz") for r in reports])
+        rates = np.array([_float(r.values, LoopKeys.RATE_HZ) for r in reports])
         running = rates[np.isfinite(rates) & (rates > 0)]
-        p99 = np.array([_float(r.values, "loop.jitter_p99_us") for r in reports])
-        peak = np.array([_float(r.values, "loop.jitter_max_us") for r in reports])
-        misses = _float(reports[-1].values, "loop.deadline_misses")
-        latency = np.array([_float(r.values, "latency.telemetry_to_command.p99_us") for r in reports])
-        cycle = np.array([_float(r.values, "cycle.p99_us") for r in reports])
-        histogram = parse_jitter_histogram(reports[-1].values.get("loop.jitter_histogram", ""))
+        p99 = np.array([_float(r.values, LoopKeys.JITTER_P99_US) for r in reports])
+        peak = np.array([_float(r.values, LoopKeys.JITTER_MAX_US) for r in reports])
+        misses = _float(reports[-1].values, LoopKeys.DEADLINE_MISSES)
+        latency = np.array([_float(r.values, ControlKeys.telemetry_to_command("p99_us")) for r in reports])
+        cycle = np.array([_float(r.values, ControlKeys.cycle("p99_us")) for r in reports])
+        histogram = parse_jitter_histogram(reports[-1].values.get(LoopKeys.JITTER_HISTOGRAM, ""))
         out.append(
             LoopTiming(
                 node,
@@ -349,7 +360,7 @@ def loop_timing(diagnostics: Iterable[DiagnosticRecord]) -> list[LoopTiming]:
                 float(np.nanmax(p99)) if np.isfinite(p99).any() else np.nan,
                 float(np.nanmax(peak)) if np.isfinite(peak).any() else np.nan,
                 int(misses) if np.isfinite(misses) else -1,
-                str(reports[-1].values.get("loop.realtime", "")),
+                str(reports[-1].values.get(LoopKeys.REALTIME, "")),
                 _worst(latency[latency > 0]),
                 _worst(cycle[cycle > 0]),
                 jitter_percentile_us(histogram, 99) if histogram is not None else np.nan,
@@ -415,18 +426,23 @@ class Transition:
     reason: str
 
 
-_DETAIL_PREFIXES: Final = ("rejected.", "clamped.")
-_DETAIL_KEYS: Final = ("board_errors", "loop_error", "safe_hold")
+_DETAIL_PREFIXES: Final = (MapperKeys.REJECTED_PREFIX, MapperKeys.CLAMPED_PREFIX, DriverKeys.CLAMPED_PREFIX)
+_DETAIL_KEYS: Final = (DriverKeys.BOARD_ERRORS, StabilizerKeys.LOOP_ERROR, DriverKeys.SAFE_HOLD)
+
+
+def is_stabilizer_status(name: str) -> bool:
+    """Whether ``name`` is the stabilizer's own status (``rh5/stabilizer``, also under another prefix)."""
+    return name.rstrip("/").endswith(STABILIZER_NODE)
 
 
 def stabilizer_transitions(diagnostics: Iterable[DiagnosticRecord]) -> list[Transition]:
     """State changes of every status whose name ends in ``stabilizer`` and carries a ``state`` key."""
     out: list[Transition] = []
     for d in diagnostics:
-        if d.name.rstrip("/").endswith("stabilizer") and "state" in d.values:
-            state = d.values["state"]
+        if is_stabilizer_status(d.name) and StabilizerKeys.STATE in d.values:
+            state = d.values[StabilizerKeys.STATE]
             if not out or out[-1].state != state:
-                out.append(Transition(d.t, state, d.values.get("reason", "")))
+                out.append(Transition(d.t, state, d.values.get(StabilizerKeys.REASON, "")))
     return out
 
 
@@ -466,7 +482,11 @@ def faults(diagnostics: Sequence[DiagnosticRecord], estopped: BoolSeries | None)
 def _reported_elsewhere(name: str) -> bool:
     """WARN statuses the report shows in another form: the stabilizer holding (its transitions) and a simulation
     slower than real time (the loop line's real-time factor)."""
-    return name.endswith("stabilizer") or name.startswith("stabilizer:") or name == "sim_hardware: physics"
+    return (
+        name.endswith(STABILIZER_NODE)
+        or name.startswith(task_prefix(STABILIZER_NODE))
+        or name == task_name(SIM_HARDWARE_NODE, PHYSICS_TASK)
+    )
 
 
 def _benign(reason: str) -> bool:
