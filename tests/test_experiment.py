@@ -191,11 +191,18 @@ def test_stamps_and_the_bag_run_on_the_simulations_clock(
         before = np.searchsorted(clock[:, 1], rows[:, 1]) - 1
         known = before >= 0
         ahead_ms = (rows[known, 2] - clock[before[known], 2]) / 1e6
-        low, high = np.percentile(ahead_ms, [1, 99])
-        assert low > -20.0, (topic, low, high)
-        assert high < 20.0, (topic, low, high)
+        low, median, high = np.percentile(ahead_ms, [1, 50, 99])
+        assert abs(median) < 5.0, (topic, low, median, high)
+        assert high < 20.0, (topic, low, median, high)
+        # behind: a sample published late (the control process's publishing child runs at normal priority, and
+        # late in a full run CI saw 38 ms of simulated time at the 1st percentile) is stamped when it was measured
+        assert low > -250.0, (topic, low, median, high)
         assert np.median(np.abs(rows[:, 0] - rows[:, 2])) < 50e6, (topic, "logged on the simulation's clock")
-    assert set(records["/sim/base_pose"][:, 2]) <= set(clock[:, 2]), "ground truth stamped with its sample's time"
+    # the recorder's subscriptions match one by one (it may record /sim/base_pose before /clock): within /clock's span
+    poses = records["/sim/base_pose"][:, 2]
+    poses = poses[(poses >= clock[0, 2]) & (poses <= clock[-1, 2])]
+    assert len(poses) > 100, len(poses)
+    assert set(poses) <= set(clock[:, 2]), "ground truth stamped with its sample's time"
     # /tf carries the stamp of the joint states it was computed from (some of which the recording dropped). The
     # recorder's subscriptions match one by one: it may record /tf for a while before it records joint_states (CI:
     # 80 /tf stamps from 0.12 s on, the first joint state at 0.55 s), so only the /tf within their span count.

@@ -231,12 +231,15 @@ def test_bad_launch_parameter_is_refused_with_the_reason(ros_graph: Any, ros_tes
     with SuiteRun(Bringup("", (bad,)), _log_dir(ros_test_environment, "bad_parameter"), domain) as run:
         started = time.monotonic()
         missing = wait_for_nodes(ros_graph, {"driver"}, exited=lambda: {p.spec.name for p in run.exited()})
+        run.processes[0].process.wait(timeout=15.0)
         waited = time.monotonic() - started
-        why = run.why_missing(missing)
+        why = run.why_missing({"driver"})
     proc = run.processes[0]
     assert proc.process.returncode == 2
     assert "rate_hz" in proc.stderr_path.read_text()
-    assert missing == {"driver"}
+    # The node exists for a moment before its parameters are checked, and a busy observer may see it then (CI
+    # did once): the wait ends either way, long before its 20 s timeout.
+    assert missing <= {"driver"}
     assert waited < 15.0
     assert why.startswith("driver: exited with 2: cannot start: "), why
     assert "rate_hz out of range" in why
