@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from rh5_bringup.sim.actuators import Mode
+from rh5_bringup.ndlcom.payloads import CommandMode
 from rh5_bringup.sim.physics import build_physics
 from rh5_msgs_py.names import NUM_ACTUATORS
 
@@ -25,7 +25,7 @@ def main() -> None:
     args = parser.parse_args()
     coupled = build_physics()
     world = coupled.world
-    mode = np.full(NUM_ACTUATORS, int(Mode.POSITION))
+    mode = np.full(NUM_ACTUATORS, int(CommandMode.POSITION))
     target = coupled.position.copy()
     for k in range(1000):
         if k == 200:

@@ -15,7 +15,8 @@ import time
 
 import numpy as np
 
-from rh5_bringup.sim.actuators import NOMINAL_DT, ActuatorBank, ActuatorParams, Mode, default_params, parameter_table
+from rh5_bringup.ndlcom.payloads import CommandMode
+from rh5_bringup.sim.actuators import NOMINAL_DT, ActuatorBank, ActuatorParams, default_params, parameter_table
 
 BUDGET_US = 100.0
 
@@ -27,7 +28,7 @@ def step_times_us(params: ActuatorParams, steps: int, warmup: int) -> np.ndarray
     mid, amplitude = 0.5 * (p.position_min + p.position_max), 0.1 * p.stroke
     load, compensation = 0.1 * p.force_max, -0.1 * p.force_max
     bank.reset(mid)
-    mode = np.full(p.num, Mode.POSITION_FF, dtype=np.int8)
+    mode = np.full(p.num, CommandMode.POSITION_FF, dtype=np.int8)
     omega = math.pi
     times = np.empty(steps)
     for k in range(warmup + steps):

@@ -13,13 +13,13 @@ from typing import NamedTuple
 import numpy as np
 import pytest
 
+from rh5_bringup.ndlcom.payloads import CommandMode
 from rh5_bringup.sim.actuators import (
     NOMINAL_DT,
     ActuatorBank,
+    ActuatorFlags,
     ActuatorMeasurement,
     ActuatorParams,
-    Mode,
-    Status,
     default_params,
 )
 from rh5_msgs_py.names import ACTUATOR_NAMES, LINEAR_ACTUATOR_NAMES
@@ -112,9 +112,9 @@ def test_step_response_settles_without_overshoot(params: ActuatorParams, start: 
     step = size * p.stroke
     bank = ActuatorBank(p)
     bank.reset(x0)
-    run(bank, 20, Mode.POSITION, x0)
+    run(bank, 20, CommandMode.POSITION, x0)
     bound = settle_bound(p, step)
-    x = stack(run(bank, int(bound.max() / DT) + 50, Mode.POSITION, x0 + step), "position")
+    x = stack(run(bank, int(bound.max() / DT) + 50, CommandMode.POSITION, x0 + step), "position")
     error = (x - x0 - step) / step  # -1 at the start, 0 on target, > 0 beyond
     assert error.max() <= 5e-3
     outside = np.abs(error) > 0.02
@@ -143,7 +143,7 @@ def sine_amplitude(p: ActuatorParams) -> np.ndarray:
     return np.minimum(0.2 * p.stroke, 0.95 * p.velocity_max / SINE_OMEGA)
 
 
-def track_sine(p: ActuatorParams, mode: Mode, seconds: float = 3.0) -> SineResult:
+def track_sine(p: ActuatorParams, mode: CommandMode, seconds: float = 3.0) -> SineResult:
     """Track x = mid + A sin(w t) from a consistent start; errors measured over the last 2 s (after 1 s)."""
     mid, amp, w = mid_stroke(p), sine_amplitude(p), SINE_OMEGA
     bank = ActuatorBank(p)
@@ -170,30 +170,30 @@ def track_sine(p: ActuatorParams, mode: Mode, seconds: float = 3.0) -> SineResul
 
 
 @pytest.fixture(scope="module")
-def sine_runs(params: ActuatorParams) -> dict[Mode, SineResult]:
-    return {mode: track_sine(params, mode) for mode in (Mode.POSITION, Mode.POSITION_FF)}
+def sine_runs(params: ActuatorParams) -> dict[CommandMode, SineResult]:
+    return {mode: track_sine(params, mode) for mode in (CommandMode.POSITION, CommandMode.POSITION_FF)}
 
 
-def test_sine_is_tracked_with_feed_forward(params: ActuatorParams, sine_runs: dict[Mode, SineResult]) -> None:
+def test_sine_is_tracked_with_feed_forward(params: ActuatorParams, sine_runs: dict[CommandMode, SineResult]) -> None:
     """POSITION_FF: RMS error below 0.05 % and peak error below 0.3 % of the amplitude.
 
     What is left is what the feed-forward does not know: Coulomb friction, which the velocity integrator has to
     rebuild at every reversal (the peak error sits there), and one sub-step of current-loop lag.
     """
-    result = sine_runs[Mode.POSITION_FF]
+    result = sine_runs[CommandMode.POSITION_FF]
     assert np.all(result.rms <= 5e-4 * result.amplitude)
     assert np.all(result.peak <= 3e-3 * result.amplitude)
     assert np.all(result.max_velocity <= params.velocity_max)
     assert np.all(result.max_force <= params.force_max)
 
 
-def test_sine_is_tracked_in_position_mode(params: ActuatorParams, sine_runs: dict[Mode, SineResult]) -> None:
+def test_sine_is_tracked_in_position_mode(params: ActuatorParams, sine_runs: dict[CommandMode, SineResult]) -> None:
     """POSITION (P position loop, no feed-forward): the peak error is the velocity lag v / kp of a type-1 loop.
 
     v_peak / kp at least, at most v_peak^2 / (2 a_brake) where the braking curve limits the feedback (fast
     rotary joints, wrist), with 10 % for the velocity loop's own lag.
     """
-    p, result = params, sine_runs[Mode.POSITION]
+    p, result = params, sine_runs[CommandMode.POSITION]
     v_peak = result.amplitude * SINE_OMEGA
     lag = v_peak / p.kp_position
     upper = 1.1 * np.maximum(lag, v_peak**2 / (2 * p.braking_acceleration))
@@ -201,9 +201,9 @@ def test_sine_is_tracked_in_position_mode(params: ActuatorParams, sine_runs: dic
     assert np.all(result.peak <= upper)
 
 
-def test_feed_forward_reduces_the_tracking_error(sine_runs: dict[Mode, SineResult]) -> None:
+def test_feed_forward_reduces_the_tracking_error(sine_runs: dict[CommandMode, SineResult]) -> None:
     """Velocity and force feed-forward cut the RMS error of the sine at least 50-fold (typically ~1000-fold)."""
-    assert np.all(sine_runs[Mode.POSITION_FF].rms <= 0.02 * sine_runs[Mode.POSITION].rms)
+    assert np.all(sine_runs[CommandMode.POSITION_FF].rms <= 0.02 * sine_runs[CommandMode.POSITION].rms)
 
 
 # ---- limits -------------------------------------------------------------------------------------------------------
@@ -222,7 +222,7 @@ def test_velocity_never_exceeds_the_limit(params: ActuatorParams, load_fraction:
     seen = 0
     for k in range(1200):
         sign = 1.0 if (k // 300) % 2 else -1.0
-        mode = Mode.POSITION_FF if k % 600 < 300 else Mode.POSITION
+        mode = CommandMode.POSITION_FF if k % 600 < 300 else CommandMode.POSITION
         setpoint = np.where(sign > 0, p.position_max, p.position_min) + sign * 0.1 * p.stroke
         m = bank.step(
             DT,
@@ -234,8 +234,8 @@ def test_velocity_never_exceeds_the_limit(params: ActuatorParams, load_fraction:
         )
         assert np.all(np.abs(m.velocity) <= p.velocity_max)
         seen |= int(np.bitwise_or.reduce(m.status))
-    assert seen & Status.VELOCITY_LIMIT
-    assert seen & Status.SETPOINT_CLIPPED
+    assert seen & ActuatorFlags.VELOCITY_LIMIT
+    assert seen & ActuatorFlags.SETPOINT_CLIPPED
 
 
 def test_force_saturates_against_an_overload(params: ActuatorParams) -> None:
@@ -244,15 +244,15 @@ def test_force_saturates_against_an_overload(params: ActuatorParams) -> None:
     mid = mid_stroke(p)
     bank = ActuatorBank(p)
     bank.reset(mid)
-    run(bank, 10, Mode.POSITION, mid)
-    history = run(bank, 400, Mode.POSITION, mid, external_force=-1.5 * p.force_max)
+    run(bank, 10, CommandMode.POSITION, mid)
+    history = run(bank, 400, CommandMode.POSITION, mid, external_force=-1.5 * p.force_max)
     force, status, x = stack(history, "force"), stack(history, "status"), stack(history, "position")
     assert np.all(np.abs(force) <= p.force_max * (1 + 1e-12))
     assert np.all(x[-1] < mid)
     np.testing.assert_allclose(force[5:], np.broadcast_to(p.force_max, force[5:].shape), rtol=1e-9)
-    assert np.all(status[5:] & Status.CURRENT_LIMIT)
+    assert np.all(status[5:] & ActuatorFlags.CURRENT_LIMIT)
     np.testing.assert_array_equal(x[-1], p.position_min)  # pushed all the way back onto the end stop
-    assert np.all(status[-1] & Status.AT_LIMIT)
+    assert np.all(status[-1] & ActuatorFlags.AT_LIMIT)
     np.testing.assert_allclose(history[-1].current, p.current_max, rtol=1e-9)
 
 
@@ -262,19 +262,19 @@ def test_end_stops_hold(params: ActuatorParams) -> None:
     bank = ActuatorBank(p)
     bank.reset(mid_stroke(p))
     beyond = p.position_max + 0.2 * p.stroke
-    history = run(bank, 1200, Mode.POSITION_FF, beyond, velocity_ff=p.velocity_max, force_ff=p.force_max)
+    history = run(bank, 1200, CommandMode.POSITION_FF, beyond, velocity_ff=p.velocity_max, force_ff=p.force_max)
     x = stack(history, "position")
     assert np.all(x <= p.position_max)
     np.testing.assert_array_equal(x[-1], p.position_max)
-    assert np.all(history[-1].status & Status.SETPOINT_CLIPPED)
-    assert np.all(history[-1].status & Status.AT_LIMIT)
+    assert np.all(history[-1].status & ActuatorFlags.SETPOINT_CLIPPED)
+    assert np.all(history[-1].status & ActuatorFlags.AT_LIMIT)
     # power off and drive it outwards with half the force limit: inelastic stop, zero velocity on it
-    history = run(bank, 600, Mode.OFF, external_force=-0.5 * p.force_max)
+    history = run(bank, 600, CommandMode.OFF, external_force=-0.5 * p.force_max)
     x = stack(history, "position")
     assert np.all(x >= p.position_min)
     np.testing.assert_array_equal(x[-1], p.position_min)
     np.testing.assert_array_equal(history[-1].velocity, 0.0)
-    assert np.all(history[-1].status & Status.AT_LIMIT)
+    assert np.all(history[-1].status & ActuatorFlags.AT_LIMIT)
 
 
 # ---- modes --------------------------------------------------------------------------------------------------------
@@ -291,9 +291,9 @@ def test_hold_keeps_the_position_under_load(params: ActuatorParams) -> None:
     x0 = p.position_min + 0.4 * p.stroke
     bank = ActuatorBank(p)
     bank.reset(x0)
-    run(bank, 20, Mode.POSITION, x0)
+    run(bank, 20, CommandMode.POSITION, x0)
     load = 0.3 * p.force_max * np.where(np.arange(p.num) % 2, 1.0, -1.0)
-    history = run(bank, 500, Mode.HOLD, x0 + 0.1 * p.stroke, external_force=load)
+    history = run(bank, 500, CommandMode.HOLD, x0 + 0.1 * p.stroke, external_force=load)
     deviation = np.abs(stack(history, "position") - x0)
     assert np.all(deviation.max(axis=0) <= 2e-3 * p.stroke)
     assert np.all(deviation[-1] <= 1e-9 * p.stroke)
@@ -312,15 +312,15 @@ def test_off_lets_the_load_move_the_actuator(params: ActuatorParams) -> None:
     bank = ActuatorBank(p)
     bank.reset(mid)
     load = 0.2 * p.force_max
-    history = run(bank, 50, Mode.OFF, external_force=load)
+    history = run(bank, 50, CommandMode.OFF, external_force=load)
     t = 50 * DT
     a, beta = (load - p.coulomb) / p.inertia, p.viscous / p.inertia
     expected = a / beta * (t + np.expm1(-beta * t) / beta)
     np.testing.assert_allclose(history[-1].position - mid, expected, rtol=5e-3)
     np.testing.assert_array_equal(stack(history, "current"), 0.0)
-    assert not np.any(stack(history, "status") & Status.ENABLED)
+    assert not np.any(stack(history, "status") & ActuatorFlags.ENABLED)
     bank.reset(mid)
-    history = run(bank, 50, Mode.OFF, external_force=0.9 * p.coulomb)
+    history = run(bank, 50, CommandMode.OFF, external_force=0.9 * p.coulomb)
     np.testing.assert_array_equal(history[-1].position, mid)
 
 
@@ -330,19 +330,19 @@ def test_switching_off_and_on_again(params: ActuatorParams) -> None:
     mid = mid_stroke(p)
     bank = ActuatorBank(p)
     bank.reset(mid)
-    modes = np.full(p.num, Mode.POSITION, dtype=np.int8)
-    modes[::2] = Mode.OFF
+    modes = np.full(p.num, CommandMode.POSITION, dtype=np.int8)
+    modes[::2] = CommandMode.OFF
     m = run(bank, 300, modes, mid + 0.05 * p.stroke)[-1]
     np.testing.assert_array_equal(m.position[::2], mid[::2])
     np.testing.assert_allclose(m.position[1::2], (mid + 0.05 * p.stroke)[1::2], rtol=0, atol=1e-6)
-    assert np.all(m.status[1::2] & Status.ENABLED)
-    assert not np.any(m.status[::2] & Status.ENABLED)
-    m = bank.step(DT, Mode.OFF, external_force=0.1 * p.force_max)
+    assert np.all(m.status[1::2] & ActuatorFlags.ENABLED)
+    assert not np.any(m.status[::2] & ActuatorFlags.ENABLED)
+    m = bank.step(DT, CommandMode.OFF, external_force=0.1 * p.force_max)
     np.testing.assert_array_equal(m.force, 0.0)
     with pytest.raises(ValueError, match="modes must be"):
         bank.step(DT, 7, mid)
     with pytest.raises(ValueError, match="dt must be"):
-        bank.step(5 * DT, Mode.POSITION, mid)
+        bank.step(5 * DT, CommandMode.POSITION, mid)
 
 
 def test_a_shorter_cycle_keeps_the_state(params: ActuatorParams) -> None:
@@ -352,9 +352,9 @@ def test_a_shorter_cycle_keeps_the_state(params: ActuatorParams) -> None:
     bank = ActuatorBank(p)
     bank.reset(mid)
     load = 0.4 * p.force_max
-    before = run(bank, 300, Mode.POSITION, mid, external_force=load)[-1]
+    before = run(bank, 300, CommandMode.POSITION, mid, external_force=load)[-1]
     integral = bank.velocity_integral
-    after = bank.step(DT / 2, Mode.POSITION, mid, external_force=load)
+    after = bank.step(DT / 2, CommandMode.POSITION, mid, external_force=load)
     np.testing.assert_allclose(after.force, before.force, rtol=1e-9)
     np.testing.assert_allclose(bank.velocity_integral, integral, rtol=1e-9)
 
@@ -366,9 +366,9 @@ def test_winding_heats_with_i2r(params: ActuatorParams) -> None:
     bank = ActuatorBank(p)
     bank.reset(mid)
     load = 0.8 * p.force_max
-    run(bank, 300, Mode.POSITION, mid, external_force=load)  # settle: the motor now carries the load
+    run(bank, 300, CommandMode.POSITION, mid, external_force=load)  # settle: the motor now carries the load
     t0 = bank.state.temperature.copy()
-    m = run(bank, 1000, Mode.POSITION, mid, external_force=load)[-1]
+    m = run(bank, 1000, CommandMode.POSITION, mid, external_force=load)[-1]
     power = m.current**2 * p.resistance
     settled = p.ambient_temperature + power * p.thermal_resistance
     expected = settled + (t0 - settled) * np.exp(-1.0 / p.thermal_time_constant)
@@ -397,7 +397,7 @@ def test_same_inputs_give_the_same_outputs(params: ActuatorParams) -> None:
     def replay() -> list[ActuatorMeasurement]:
         bank = ActuatorBank(p)
         bank.reset(mid_stroke(p))
-        out, mode = [], Mode.POSITION
+        out, mode = [], CommandMode.POSITION
         for new_mode, setpoint, velocity_ff, force_ff, external_force in commands:
             mode = mode if new_mode is None else new_mode
             out.append(

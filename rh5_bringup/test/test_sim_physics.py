@@ -14,12 +14,12 @@ from typing import Any
 import numpy as np
 import pytest
 
-from rh5_bringup.sim.actuators import Mode
+from rh5_bringup.ndlcom.payloads import CommandMode
 from rh5_bringup.sim.physics import PhysicsActuatorBank, PhysicsWorld, build_physics, contact_links
 from rh5_hyrodyn_mapper.model import robot_model
 from rh5_msgs_py.names import NUM_ACTUATORS, NUM_JOINTS
 
-POSITION = np.full(NUM_ACTUATORS, int(Mode.POSITION))
+POSITION = np.full(NUM_ACTUATORS, int(CommandMode.POSITION))
 OFF = np.zeros(NUM_ACTUATORS, dtype=int)
 
 

@@ -13,11 +13,10 @@ if TYPE_CHECKING:
         NOMINAL_DT,
         SUBSTEPS,
         ActuatorBank,
+        ActuatorFlags,
         ActuatorMeasurement,
         ActuatorParams,
         ActuatorState,
-        Mode,
-        Status,
         default_params,
     )
 
@@ -26,11 +25,10 @@ _EXPORTS = dict.fromkeys(
         "NOMINAL_DT",
         "SUBSTEPS",
         "ActuatorBank",
+        "ActuatorFlags",
         "ActuatorMeasurement",
         "ActuatorParams",
         "ActuatorState",
-        "Mode",
-        "Status",
         "default_params",
     ),
     "actuators",
@@ -39,11 +37,10 @@ __all__ = [
     "NOMINAL_DT",
     "SUBSTEPS",
     "ActuatorBank",
+    "ActuatorFlags",
     "ActuatorMeasurement",
     "ActuatorParams",
     "ActuatorState",
-    "Mode",
-    "Status",
     "default_params",
 ]
 

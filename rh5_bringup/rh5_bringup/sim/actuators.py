@@ -48,10 +48,10 @@ viscous and Coulomb friction; the position then advances with the new velocities
 velocity P gain per sub-step, the back-EMF slope per cycle) are checked against ``ActuatorParams.max_dt``
 (1.5 ms at the defaults); `step` refuses longer cycles.
 
-Modes per actuator (`Mode`): OFF (power stage off: no current, free), HOLD (hold the position measured on
+Modes per actuator (`CommandMode`): OFF (power stage off: no current, free), HOLD (hold the position measured on
 entering HOLD), POSITION (track the setpoint; feed-forward ignored), POSITION_FF (with velocity and force
 feed-forward). Measured outputs (`ActuatorMeasurement`): position, velocity, force (the motor force at the
-output, K i, as a board estimates it from its current), current, winding temperature, `Status` flags.
+output, K i, as a board estimates it from its current), current, winding temperature, `ActuatorFlags`.
 Sign convention: a positive force pushes towards a larger length/angle; ``external_force`` is what the
 environment applies at the output (0 or a constant load in kinematic mode, from the rigid-body simulation
 in physics mode), held constant over the cycle.
@@ -67,7 +67,7 @@ import fnmatch
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
-from enum import IntEnum, IntFlag
+from enum import IntFlag
 from importlib import resources
 from pathlib import Path
 from typing import Any, NamedTuple, Protocol
@@ -76,6 +76,7 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
+from rh5_bringup.ndlcom.payloads import CommandMode
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py.names import ACTUATOR_NAMES, LINEAR_ACTUATOR_NAMES, NUM_ACTUATORS
 
@@ -91,17 +92,9 @@ NOMINAL_DT = 1e-3
 PARAMETER_FILE = "actuator_params.yaml"
 
 
-class Mode(IntEnum):
-    """Operating mode of one board, with its wire value."""
-
-    OFF = 0
-    HOLD = 1
-    POSITION = 2
-    POSITION_FF = 3
-
-
-class Status(IntFlag):
-    """Status and error flags of one board (one byte per actuator; bit values are the wire values)."""
+class ActuatorFlags(IntFlag):
+    """What the actuator model reports of one actuator per step (one byte each); ``boards.wire_flags`` turns them into
+    the telemetry's status and error bits."""
 
     ENABLED = 1  # power stage on (mode is not OFF)
     AT_LIMIT = 2  # on an end stop (position at the stroke limit)
@@ -439,7 +432,7 @@ class ActuatorState:
             velocity=z.copy(),
             force=z.copy(),
             temperature=np.array(np.broadcast_to(np.asarray(temperature, dtype=np.float64), (n,))),
-            mode=np.full(n, Mode.OFF, dtype=np.int8),
+            mode=np.full(n, CommandMode.OFF, dtype=np.int8),
             hold_position=x.copy(),
             setpoint=x.copy(),
             target=x.copy(),
@@ -465,7 +458,7 @@ class ActuatorMeasurement(NamedTuple):
     force: FloatArray  # motor force at the output K i [N or Nm]
     current: FloatArray  # A
     temperature: FloatArray  # winding, deg C
-    status: npt.NDArray[np.uint8]  # Status bits
+    status: npt.NDArray[np.uint8]  # ActuatorFlags bits
 
 
 class _Coefficients(NamedTuple):
@@ -504,20 +497,20 @@ class _Coefficients(NamedTuple):
     any_ff: bool
 
 
-# Status rows: ENABLED, SETPOINT_CLIPPED, VOLTAGE_LIMIT, then the five comparisons value >= threshold of
+# ActuatorFlags rows: ENABLED, SETPOINT_CLIPPED, VOLTAGE_LIMIT, then the five comparisons value >= threshold of
 # `_Coefficients.thresholds` (upper stop, lower stop, current limit, velocity limit, following error), then
 # OVERTEMPERATURE. The two end-stop rows exclude each other, so their weights may add up.
 _STATUS_WEIGHTS = np.array(
     [
-        Status.ENABLED,
-        Status.SETPOINT_CLIPPED,
-        Status.VOLTAGE_LIMIT,
-        Status.AT_LIMIT,
-        Status.AT_LIMIT,
-        Status.CURRENT_LIMIT,
-        Status.VELOCITY_LIMIT,
-        Status.FOLLOWING_ERROR,
-        Status.OVERTEMPERATURE,
+        ActuatorFlags.ENABLED,
+        ActuatorFlags.SETPOINT_CLIPPED,
+        ActuatorFlags.VOLTAGE_LIMIT,
+        ActuatorFlags.AT_LIMIT,
+        ActuatorFlags.AT_LIMIT,
+        ActuatorFlags.CURRENT_LIMIT,
+        ActuatorFlags.VELOCITY_LIMIT,
+        ActuatorFlags.FOLLOWING_ERROR,
+        ActuatorFlags.OVERTEMPERATURE,
     ],
     dtype=np.uint8,
 )
@@ -582,7 +575,7 @@ class ActuatorBank:
     ) -> ActuatorMeasurement:
         """Advance one board cycle of ``dt`` (nominally 1 ms): the position loop once, then `SUBSTEPS` velocity cycles.
 
-        ``mode``: one `Mode` for all or one per actuator. ``setpoint`` None keeps the last setpoint; the
+        ``mode``: one `CommandMode` for all or one per actuator. ``setpoint`` None keeps the last setpoint; the
         feed-forwards act in POSITION_FF only; ``external_force`` (None = 0) acts at the output, constant over
         the cycle. Arrays have shape (32,). Returns the measurement at the end of the cycle.
         """
@@ -753,8 +746,8 @@ class ActuatorBank:
         if not (0.0 < dt <= self.params.max_dt):
             msg = f"step: dt must be in (0, {self.params.max_dt:.4g}] s, got {dt}"
             raise ValueError(msg)
-        if modes.min() < Mode.OFF or modes.max() > Mode.POSITION_FF:
-            msg = f"step: modes must be in {[int(m) for m in Mode]}, got {sorted(set(modes.tolist()))}"
+        if modes.min() < CommandMode.OFF or modes.max() > CommandMode.POSITION_FF:
+            msg = f"step: modes must be in {[int(m) for m in CommandMode]}, got {sorted(set(modes.tolist()))}"
             raise ValueError(msg)
         st = self.state
         coef = self._coefficients(dt, modes)
@@ -767,13 +760,13 @@ class ActuatorBank:
                 np.multiply(scaled, factor, out=scaled)
         old = st.mode
         changed = modes != old
-        entering_hold = changed & (modes == Mode.HOLD)
+        entering_hold = changed & (modes == CommandMode.HOLD)
         st.hold_position[entering_hold] = st.position[entering_hold]
-        reset = changed & ((old == Mode.OFF) | (modes == Mode.OFF))  # switching the power stage on or off
+        reset = changed & ((old == CommandMode.OFF) | (modes == CommandMode.OFF))  # switching the power stage on or off
         for values in (st.integrator, st.position_integral, st.lag, st.applied, st.force):
             values[reset] = 0.0
         st.mode = modes.copy()
-        self._flags[0] = modes != Mode.OFF
+        self._flags[0] = modes != CommandMode.OFF
         self._mode_key = key
         self._coef = coef
         return coef
@@ -781,10 +774,10 @@ class ActuatorBank:
     def _coefficients(self, dt: float, modes: npt.NDArray[np.int8]) -> _Coefficients:
         p = self.params
         h = dt / p.substeps
-        en = (modes != Mode.OFF).astype(np.float64)
+        en = (modes != CommandMode.OFF).astype(np.float64)
         on = en > 0
-        ff_gain = (modes == Mode.POSITION_FF).astype(np.float64)
-        hold = modes == Mode.HOLD
+        ff_gain = (modes == CommandMode.POSITION_FF).astype(np.float64)
+        hold = modes == CommandMode.HOLD
         s = h / p.inertia
         alpha = -np.expm1(-h / p.current_time_constant)
         emf_a = p.force_constant * p.bus_voltage / p.resistance * s * en

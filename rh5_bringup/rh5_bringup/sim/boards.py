@@ -27,7 +27,7 @@ from rh5_bringup.ndlcom.payloads import (
     decode_command,
     encode_telemetry_many,
 )
-from rh5_bringup.sim.actuators import ActuatorBank, ActuatorMeasurement, Mode, Status
+from rh5_bringup.sim.actuators import ActuatorBank, ActuatorFlags, ActuatorMeasurement
 from rh5_bringup.transports.base import Transport
 from rh5_msgs_py.realtime import LoopThread, set_timer_slack
 
@@ -52,6 +52,10 @@ class Faults:
     seed: int = 0
 
 
+LIMITED = ActuatorFlags.CURRENT_LIMIT | ActuatorFlags.VOLTAGE_LIMIT | ActuatorFlags.VELOCITY_LIMIT
+"""The actuator model's flags that the telemetry reports as SATURATED."""
+
+
 def wire_flags(mode: np.ndarray, status: np.ndarray, timed_out: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Telemetry status and error bits (uint16 arrays) from the actuator model's status bits, for all boards."""
     status = status.astype(np.int64)
@@ -60,17 +64,15 @@ def wire_flags(mode: np.ndarray, status: np.ndarray, timed_out: np.ndarray) -> t
         return (status & int(bits)) != 0
 
     flags = (
-        np.where(has(Status.ENABLED), int(StatusFlags.ENABLED | StatusFlags.CALIBRATED), 0)
+        np.where(has(ActuatorFlags.ENABLED), int(StatusFlags.ENABLED | StatusFlags.CALIBRATED), 0)
         | np.where(mode == int(CommandMode.HOLD), int(StatusFlags.HOLDING), 0)
         | np.where(mode == int(CommandMode.POSITION_FF), int(StatusFlags.FEED_FORWARD), 0)
-        | np.where(has(Status.AT_LIMIT), int(StatusFlags.AT_LIMIT), 0)
-        | np.where(
-            has(Status.CURRENT_LIMIT | Status.VOLTAGE_LIMIT | Status.VELOCITY_LIMIT), int(StatusFlags.SATURATED), 0
-        )
+        | np.where(has(ActuatorFlags.AT_LIMIT), int(StatusFlags.AT_LIMIT), 0)
+        | np.where(has(LIMITED), int(StatusFlags.SATURATED), 0)
     )
     errors = (
-        np.where(has(Status.FOLLOWING_ERROR), int(ErrorFlags.FOLLOWING_ERROR), 0)
-        | np.where(has(Status.OVERTEMPERATURE), int(ErrorFlags.OVERTEMP), 0)
+        np.where(has(ActuatorFlags.FOLLOWING_ERROR), int(ErrorFlags.FOLLOWING_ERROR), 0)
+        | np.where(has(ActuatorFlags.OVERTEMPERATURE), int(ErrorFlags.OVERTEMP), 0)
         | np.where(timed_out, int(ErrorFlags.COMMAND_TIMEOUT), 0)
     )
     return flags.astype(np.uint16), errors.astype(np.uint16)
@@ -168,8 +170,8 @@ class BoardEmulator:
             return self.bank.measure()
         self._receive(now_ns, frames)
         timed_out = (self.mode != int(CommandMode.OFF)) & (now_ns - self.command_ns > BOARD_COMMAND_TIMEOUT_NS)
-        mode = np.where(timed_out, int(Mode.HOLD), self.mode)
-        setpoint = np.where(mode >= int(Mode.POSITION), self.setpoint, 0.0)
+        mode = np.where(timed_out, int(CommandMode.HOLD), self.mode)
+        setpoint = np.where(mode >= int(CommandMode.POSITION), self.setpoint, 0.0)
         # Real time passes for the actuators even when this loop is late: the boards run their own 1 ms cycles,
         # so step as many whole cycles as have passed (a stall longer than max_catch_up_ns is not replayed). A fixed
         # cycle also keeps the bank's discretised loop coefficients cached (a varying dt recomputed them each time).

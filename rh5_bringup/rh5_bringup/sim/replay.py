@@ -27,12 +27,13 @@ from typing import Final, Literal
 import numpy as np
 import numpy.typing as npt
 
+from rh5_bringup.ndlcom.payloads import CommandMode
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_hyrodyn_mapper.model import joint_limits
 from rh5_msgs_py.names import NUM_ACTUATORS, NUM_JOINTS
 from rh5_msgs_py.trajectory_file import NQ, TrajectoryData
 
-from .actuators import ActuatorBank, Mode
+from .actuators import ActuatorBank
 from .physics import JointDynamics, PhysicsWorld, build_physics, joint_dynamics, quaternion_matrix
 
 FloatArray = npt.NDArray[np.float64]
@@ -107,7 +108,7 @@ def _setup(controller: Controller, q0: FloatArray, friction: float, payload: flo
     if controller == "boards":
         coupled = build_physics(friction, payload, q0, tune_to_load=True)
         mapper = robot_mapper()
-        track = np.full(NUM_ACTUATORS, int(Mode.POSITION_FF))
+        track = np.full(NUM_ACTUATORS, int(CommandMode.POSITION_FF))
 
         def advance(q: FloatArray, v: FloatArray, tau: FloatArray) -> None:
             target, _ = mapper.clamp(mapper.to_actuators(q, v, tau=tau))  # as the mapper node sends it
