@@ -95,8 +95,9 @@ def _finite(value: Any) -> Any:
     return value if not isinstance(value, float) or math.isfinite(value) else None
 
 
-def parse_overrides(text: str) -> dict[str, Any]:
-    """``motion_overrides`` as a dict; _BadParameterError unless it is a JSON object."""
+def overrides_parameter(text: str) -> dict[str, Any]:
+    """The ``motion_overrides`` parameter (a JSON object, as a ROS parameter string carries it) as a dict;
+    _BadParameterError otherwise. The command line's ``--set key=value`` items are ``plan_cli.parse_overrides``."""
     try:
         value = json.loads(text) if text.strip() else {}
     except json.JSONDecodeError as err:
@@ -210,7 +211,7 @@ class PlannerNode(SuiteNode):
     def _job(self) -> _Job:
         """The validated parameters of a solve; _BadParameterError naming the first bad one."""
         params = self.params
-        overrides = parse_overrides(params["motion_overrides"])
+        overrides = overrides_parameter(params["motion_overrides"])
         try:
             motion = get_motion(params["motion"])
         except MotionError as err:
