@@ -15,6 +15,7 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
+from rh5_msgs_py.hermite import hermite_weights
 from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS
 
 FloatArray = npt.NDArray[np.float64]
@@ -64,11 +65,11 @@ class PlannedTrajectory:
             return ReferenceSample(self.positions[-1], np.zeros(NUM_JOINTS), self.efforts[-1])
         k = int(np.searchsorted(times, t, side="right")) - 1
         h = times[k + 1] - times[k]
-        s = (t - times[k]) / h
-        s2, s3 = s * s, s * s * s
+        s = float((t - times[k]) / h)
         segment = self._segments[k]
-        position = np.array((2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2)) @ segment
-        velocity = np.array((6 * s2 - 6 * s, 3 * s2 - 4 * s + 1, -6 * s2 + 6 * s, 3 * s2 - 2 * s)) @ segment / h
+        weights, slopes = hermite_weights(s)
+        position = weights @ segment
+        velocity = slopes @ segment / h
         effort = (1 - s) * self.efforts[k] + s * self.efforts[k + 1]
         return ReferenceSample(position, velocity, effort)
 

@@ -33,6 +33,7 @@ from typing import Final
 import numpy as np
 import numpy.typing as npt
 
+from rh5_msgs_py.hermite import hermite_weights
 from rh5_msgs_py.trajectory_file import NQ, TrajectoryData
 
 __all__ = ["RATE_HZ", "Interpolated", "euler_tangents", "hermite", "interpolate", "quat_to_rot", "rot_to_quat"]
@@ -46,15 +47,11 @@ def hermite(
 ) -> tuple[FloatArray, FloatArray]:
     """Cubic Hermite value and time derivative at normalised times ``s`` in [0, 1] over a segment of ``h`` s.
 
-    ``p*`` are (..., d) end values, ``m*`` end slopes per second. Returns arrays of shape (len(s), d).
+    ``p*`` are (d,) end values, ``m*`` end slopes per second. Returns arrays of shape (len(s), d).
     """
-    s = s[:, None]
-    s2, s3 = s * s, s * s * s
-    h00, h10, h01, h11 = 2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2
-    d00, d10, d01, d11 = 6 * s2 - 6 * s, 3 * s2 - 4 * s + 1, -6 * s2 + 6 * s, 3 * s2 - 2 * s
-    value = h00 * p0 + h10 * h * m0 + h01 * p1 + h11 * h * m1
-    rate = (d00 * p0 + d10 * h * m0 + d01 * p1 + d11 * h * m1) / h
-    return value, rate
+    weights, slopes = hermite_weights(s)
+    ends = np.stack(np.broadcast_arrays(p0, h * m0, p1, h * m1))
+    return weights.T @ ends, slopes.T @ ends / h
 
 
 def euler_tangents(velocities: FloatArray) -> FloatArray:
