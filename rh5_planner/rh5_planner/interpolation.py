@@ -16,7 +16,7 @@ converts with ``to_trajectory_data()``):
   the world position is ``R(q) v_lin``.
 * Base orientation: a cubic Hermite curve on SO(3) in the tangent space of the segment's start rotation:
   phi(0) = 0, phi(1) = log(R0^T R1), end slopes from the (Euler-consistent) body angular velocities, then
-  R(t) = R0 exp(phi(t)); written back as a unit quaternion xyzw.
+  R(t) = R0 exp(phi(t)) (Pinocchio's exp3 and log3); written back as a unit quaternion xyzw.
 * Velocities: the analytic derivative of the position splines (joints), and the knot velocities linearly
   interpolated for the base twist.
 * Torques and contact wrenches: zero-order hold over each knot interval, exactly as the Euler integrator
@@ -32,11 +32,13 @@ from typing import Final
 
 import numpy as np
 import numpy.typing as npt
+import pinocchio as pin
 
+from rh5_hyrodyn_mapper.tf_tree import rotation_to_quaternion
 from rh5_msgs_py.hermite import hermite_weights
 from rh5_msgs_py.trajectory_file import NQ, TrajectoryData
 
-__all__ = ["RATE_HZ", "Interpolated", "euler_tangents", "hermite", "interpolate", "quat_to_rot", "rot_to_quat"]
+__all__ = ["RATE_HZ", "Interpolated", "euler_tangents", "hermite", "interpolate"]
 
 FloatArray = npt.NDArray[np.float64]
 RATE_HZ: Final = 1000.0
@@ -63,57 +65,6 @@ def euler_tangents(velocities: FloatArray) -> FloatArray:
     if v.shape[0] > 2:
         slopes[1:-1] = 0.5 * (v[1:-1] + v[2:])
     return slopes
-
-
-def _skew(w: FloatArray) -> FloatArray:
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-
-
-def _exp3(w: FloatArray) -> FloatArray:
-    theta = float(np.linalg.norm(w))
-    k = _skew(w)
-    if theta < 1e-9:
-        return np.eye(3) + k + 0.5 * k @ k
-    return np.eye(3) + np.sin(theta) / theta * k + (1 - np.cos(theta)) / theta**2 * k @ k
-
-
-def _log3(r: FloatArray) -> FloatArray:
-    cos = np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0)
-    theta = float(np.arccos(cos))
-    vee = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
-    if theta < 1e-9:
-        return 0.5 * vee
-    return theta / (2.0 * np.sin(theta)) * vee
-
-
-def quat_to_rot(q: FloatArray) -> FloatArray:
-    """Rotation matrix of a quaternion xyzw."""
-    x, y, z, w = q / np.linalg.norm(q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
-def rot_to_quat(r: FloatArray) -> FloatArray:
-    """Quaternion xyzw (w >= 0) of a rotation matrix."""
-    tr = np.trace(r)
-    if tr > 0:
-        s = 2.0 * np.sqrt(tr + 1.0)
-        q = np.array([(r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s, 0.25 * s])
-    else:
-        i = int(np.argmax(np.diag(r)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * np.sqrt(1.0 + r[i, i] - r[j, j] - r[k, k])
-        q = np.zeros(4)
-        q[i] = 0.25 * s
-        q[j] = (r[j, i] + r[i, j]) / s
-        q[k] = (r[k, i] + r[i, k]) / s
-        q[3] = (r[k, j] - r[j, k]) / s
-    return q if q[3] >= 0 else -q
 
 
 @dataclass(frozen=True, eq=False)
@@ -181,7 +132,7 @@ def interpolate(data: TrajectoryData, rate_hz: float = RATE_HZ, *, joints_only: 
     out = np.zeros((grid.size, x.shape[1]))
     acc = np.zeros((grid.size, x.shape[1] - NQ - 6))
     nj = x.shape[1] - NQ - 6
-    rotations = np.array([quat_to_rot(quat) for quat in x[:, 3:7]])
+    rotations = np.array([pin.Quaternion(w, qx, qy, qz).normalized().toRotationMatrix() for qx, qy, qz, w in x[:, 3:7]])
     joint_slopes = euler_tangents(x[:, NQ + 6 :])
     base_slopes = euler_tangents(np.einsum("kij,kj->ki", rotations, x[:, NQ : NQ + 3]))  # world frame
     spin_slopes = euler_tangents(x[:, NQ + 3 : NQ + 6])  # body frame
@@ -216,9 +167,9 @@ def interpolate(data: TrajectoryData, rate_hz: float = RATE_HZ, *, joints_only: 
         p, _ = hermite(x0[:3], x1[:3], base_slopes[k], base_slopes[k + 1], h=h, s=s)
         out[mask, :3] = p
         # base orientation: Hermite in the tangent space at r0
-        phi1 = _log3(r0.T @ r1)
+        phi1 = pin.log3(r0.T @ r1)
         phi, _ = hermite(np.zeros(3), phi1, spin_slopes[k], spin_slopes[k + 1], h=h, s=s)
-        out[mask, 3:7] = np.array([rot_to_quat(r0 @ _exp3(f)) for f in phi])
+        out[mask, 3:7] = np.array([rotation_to_quaternion(r0 @ pin.exp3(f)) for f in phi])
         # base twist: linear blend of the knot twists
         out[mask, NQ : NQ + 6] = (1 - s_col) * x0[NQ : NQ + 6] + s_col * x1[NQ : NQ + 6]
     controls = data.controls
