@@ -16,7 +16,8 @@ import time
 import numpy as np
 
 from rh5_bringup.ndlcom.payloads import CommandMode
-from rh5_bringup.sim.actuators import NOMINAL_DT, ActuatorBank, ActuatorParams, default_params, parameter_table
+from rh5_bringup.sim.actuator_model import NOMINAL_DT, ActuatorParams, default_params, parameter_table
+from rh5_bringup.sim.actuators import ActuatorBank
 
 BUDGET_US = 100.0
 

@@ -35,7 +35,7 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from rh5_hyrodyn_mapper.tf_tree import rotation_to_quaternion
-from rh5_msgs_py.hermite import hermite_weights
+from rh5_msgs_py.hermite import hermite_curvature_weights, hermite_weights
 from rh5_msgs_py.trajectory_file import NQ, TrajectoryData
 
 __all__ = ["RATE_HZ", "Interpolated", "euler_tangents", "hermite", "interpolate"]
@@ -46,14 +46,15 @@ RATE_HZ: Final = 1000.0
 
 def hermite(
     p0: FloatArray, p1: FloatArray, m0: FloatArray, m1: FloatArray, *, h: float, s: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    """Cubic Hermite value and time derivative at normalised times ``s`` in [0, 1] over a segment of ``h`` s.
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Cubic Hermite value, first and second time derivative at normalised times ``s`` in [0, 1] over a segment of
+    ``h`` s.
 
     ``p*`` are (d,) end values, ``m*`` end slopes per second. Returns arrays of shape (len(s), d).
     """
     weights, slopes = hermite_weights(s)
     ends = np.stack(np.broadcast_arrays(p0, h * m0, p1, h * m1))
-    return weights.T @ ends, slopes.T @ ends / h
+    return weights.T @ ends, slopes.T @ ends / h, hermite_curvature_weights(s).T @ ends / h**2
 
 
 def euler_tangents(velocities: FloatArray) -> FloatArray:
@@ -146,14 +147,8 @@ def interpolate(data: TrajectoryData, rate_hz: float = RATE_HZ, *, joints_only: 
         x0, x1 = x[k], x[k + 1]
         m0, m1 = joint_slopes[k], joint_slopes[k + 1]
         # joints
-        p, dp = hermite(x0[7:NQ], x1[7:NQ], m0, m1, h=h, s=s)
+        p, dp, d2 = hermite(x0[7:NQ], x1[7:NQ], m0, m1, h=h, s=s)
         s_col = s[:, None]
-        d2 = (
-            (12 * s_col - 6) * x0[7:NQ]
-            + (6 * s_col - 4) * h * m0
-            + (-12 * s_col + 6) * x1[7:NQ]
-            + (6 * s_col - 2) * h * m1
-        ) / h**2
         speed0 = np.maximum(np.abs(x0[NQ + 6 :]), np.abs(m0))
         speed1 = np.maximum(np.abs(x1[NQ + 6 :]), np.abs(m1))
         _limit_overshoot(p, dp, d2, x0[7:NQ], x1[7:NQ], speed0, speed1, h, s)
@@ -164,11 +159,11 @@ def interpolate(data: TrajectoryData, rate_hz: float = RATE_HZ, *, joints_only: 
             continue
         # base position (world)
         r0, r1 = rotations[k], rotations[k + 1]
-        p, _ = hermite(x0[:3], x1[:3], base_slopes[k], base_slopes[k + 1], h=h, s=s)
+        p, _, _ = hermite(x0[:3], x1[:3], base_slopes[k], base_slopes[k + 1], h=h, s=s)
         out[mask, :3] = p
         # base orientation: Hermite in the tangent space at r0
         phi1 = pin.log3(r0.T @ r1)
-        phi, _ = hermite(np.zeros(3), phi1, spin_slopes[k], spin_slopes[k + 1], h=h, s=s)
+        phi, _, _ = hermite(np.zeros(3), phi1, spin_slopes[k], spin_slopes[k + 1], h=h, s=s)
         out[mask, 3:7] = np.array([rotation_to_quaternion(r0 @ pin.exp3(f)) for f in phi])
         # base twist: linear blend of the knot twists
         out[mask, NQ : NQ + 6] = (1 - s_col) * x0[NQ : NQ + 6] + s_col * x1[NQ : NQ + 6]

@@ -9,30 +9,13 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from .actuators import (
-        NOMINAL_DT,
-        SUBSTEPS,
-        ActuatorBank,
-        ActuatorFlags,
-        ActuatorMeasurement,
-        ActuatorParams,
-        ActuatorState,
-        default_params,
-    )
+    from .actuator_model import NOMINAL_DT, SUBSTEPS, ActuatorParams, ActuatorState, default_params
+    from .actuators import ActuatorBank, ActuatorFlags, ActuatorMeasurement
 
-_EXPORTS = dict.fromkeys(
-    (
-        "NOMINAL_DT",
-        "SUBSTEPS",
-        "ActuatorBank",
-        "ActuatorFlags",
-        "ActuatorMeasurement",
-        "ActuatorParams",
-        "ActuatorState",
-        "default_params",
-    ),
-    "actuators",
-)
+_EXPORTS = {
+    **dict.fromkeys(("NOMINAL_DT", "SUBSTEPS", "ActuatorParams", "ActuatorState", "default_params"), "actuator_model"),
+    **dict.fromkeys(("ActuatorBank", "ActuatorFlags", "ActuatorMeasurement"), "actuators"),
+}
 __all__ = [
     "NOMINAL_DT",
     "SUBSTEPS",

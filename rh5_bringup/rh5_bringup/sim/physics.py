@@ -70,7 +70,8 @@ import numpy as np
 import numpy.typing as npt
 import pybullet as pb
 
-from rh5_bringup.sim.actuators import ActuatorBank, ActuatorMeasurement, ActuatorParams
+from rh5_bringup.sim.actuator_model import ActuatorParams
+from rh5_bringup.sim.actuators import ActuatorBank, ActuatorMeasurement
 from rh5_bringup.sim.armature import ArmatureCorrection
 from rh5_hyrodyn_mapper.mapping import KinematicsError, RobotMapper, robot_mapper
 from rh5_hyrodyn_mapper.model.urdf import generate_urdf, load_parameters
