@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +15,7 @@ import pytest
 
 from rh5_bringup.launcher import check_parameter_names, load_bringup, wait_for_nodes
 from rh5_bringup.params_files import CONFIG_DIR, main, render_params_file
+from rh5_msgs_py.node_runtime import STACKS_SIGNAL
 
 pytestmark = [pytest.mark.ros]
 
@@ -56,13 +58,21 @@ def test_every_node_starts_with_its_shipped_params_file(name: str, ros_graph: An
     params = CONFIG_DIR / f"{name}.params.yaml"
     command = [str(BIN / node.executable), "--ros-args", "--enclave", enclave, "--params-file", str(params)]
     process = subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    missing = {name}
     try:
         missing = wait_for_nodes(ros_graph, {name, *node.hosts}, timeout_s=60.0, enclave=enclave)
         if not missing:
             _wait_until_spinning(ros_graph, name)
     finally:
         process.send_signal(signal.SIGINT)  # only once it is built and spinning, unless its nodes never came
-        _, err = process.communicate(timeout=60)
+        try:
+            _, err = process.communicate(timeout=60)
+        except subprocess.TimeoutExpired:  # stuck (CI, once): its threads' stacks, then kill it
+            process.send_signal(STACKS_SIGNAL)
+            time.sleep(2.0)
+            process.kill()
+            _, err = process.communicate()
+            pytest.fail(f"{name} did not stop within 60 s of SIGINT (missing {missing}); stderr:\n{err[-6000:]}")
     assert missing == set(), err[-2000:]
     assert process.returncode == 0, err[-2000:]
 

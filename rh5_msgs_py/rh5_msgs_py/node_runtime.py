@@ -7,6 +7,7 @@ and a bad start-up (e.g. an invalid parameter) into exit code 2 with the reason.
 
 from __future__ import annotations
 
+import faulthandler
 import json
 import signal
 import sys
@@ -43,6 +44,8 @@ Applier = Callable[[Any], Callable[[], None] | None]
 SUMMARY_PREFIX = "RH5_SUMMARY "
 EXIT_BAD_START = 2
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+STACKS_SIGNAL = signal.SIGUSR1
+"""Makes a running node print every thread's Python stack on stderr and go on."""
 
 
 class SuiteNode(Node):
@@ -257,6 +260,7 @@ def run_node(factory: Callable[[], SuiteNode | Sequence[SuiteNode]], args: list[
     with their summaries (the launcher and tests may signal a node as soon as it shows up in the graph).
     """
     apply_safe_defaults()
+    faulthandler.register(STACKS_SIGNAL, all_threads=True)  # `kill -USR1 <pid>`: where a stuck node is, on stderr
     rclpy.init(args=args if args is not None else sys.argv, signal_handler_options=SignalHandlerOptions.NO)
     nodes: list[SuiteNode] = []
     stopped = False

@@ -72,3 +72,35 @@ def test_a_stop_while_the_node_is_built_ends_it_cleanly_once_built(
     )
     assert child.returncode == 0, child.stderr[-2000:]
     assert [s["node"] for s in parse_summaries(child.stdout)] == ["stabilizer"], child.stdout[-2000:]
+
+
+STACKS_THEN_STOP = """
+import os, signal
+from rh5_joint_stabilizer.stabilizer_node import StabilizerNode
+from rh5_msgs_py.node_runtime import STACKS_SIGNAL, run_node
+
+def build():
+    node = StabilizerNode()
+    os.kill(os.getpid(), STACKS_SIGNAL)  # an operator asks where the node is
+    os.kill(os.getpid(), signal.SIGINT)
+    return node
+
+run_node(build, ["stabilizer"])
+"""
+
+
+def test_sigusr1_prints_every_threads_stack_and_the_node_goes_on(ros_test_environment: dict[str, str]) -> None:
+    """``kill -USR1`` on a node prints where each of its threads is (faulthandler) and does not stop it: the
+    node still ends cleanly on the SIGINT that follows, with its summary."""
+    child = subprocess.run(
+        [sys.executable, "-c", STACKS_THEN_STOP],
+        check=False,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env=dict(os.environ),
+    )
+    assert child.returncode == 0, child.stderr[-2000:]
+    assert "most recent call first" in child.stderr, child.stderr[-2000:]
+    assert "in build" in child.stderr  # the main thread's stack, at the call that sent the signal
+    assert [s["node"] for s in parse_summaries(child.stdout)] == ["stabilizer"], child.stdout[-2000:]
