@@ -61,7 +61,7 @@ def ros_graph(ros_test_environment: dict[str, str]) -> Iterator[object]:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    from rh5_bringup.fastdds_shm import release_observer_files, shm_files_of
+    from rh5_bringup.orchestration.fastdds_shm import release_observer_files, shm_files_of
 
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("pytest_observer")

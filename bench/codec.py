@@ -16,9 +16,9 @@ import random
 import time
 from collections.abc import Callable
 
-from rh5_bringup.ndlcom.board_map import load_board_map
-from rh5_bringup.ndlcom.codec import FrameDecoder, encode_frame, fcs16, fcs16_reference
-from rh5_bringup.ndlcom.payloads import (
+from rh5_bringup.hardware.ndlcom.board_map import load_board_map
+from rh5_bringup.hardware.ndlcom.codec import FrameDecoder, encode_frame, fcs16, fcs16_reference
+from rh5_bringup.hardware.ndlcom.payloads import (
     Command,
     CommandMode,
     ErrorFlags,

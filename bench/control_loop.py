@@ -35,8 +35,8 @@ from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
-from rh5_bringup.cli import call_set_bool, call_trigger
-from rh5_bringup.launcher import SuiteRun, load_bringup, wait_for_nodes
+from rh5_bringup.orchestration.cli import call_set_bool, call_trigger
+from rh5_bringup.orchestration.launcher import SuiteRun, load_bringup, wait_for_nodes
 from rh5_hyrodyn_mapper.model import joint_limits
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec, diagnostics_from_msg, joint_trajectory_to_msg

@@ -19,12 +19,12 @@ import numpy as np
 import rclpy
 from rclpy.signals import SignalHandlerOptions
 
-from rh5_bringup.driver_node import actuator_limits
-from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
-from rh5_bringup.ndlcom.board_map import load_board_map
-from rh5_bringup.ndlcom.codec import FrameDecoder, encode_frame
-from rh5_bringup.rig import DriverLoop, sine_centre
-from rh5_bringup.transports import open_transport
+from rh5_bringup.hardware.driver_node import actuator_limits
+from rh5_bringup.hardware.ndlcom.board_map import load_board_map
+from rh5_bringup.hardware.ndlcom.codec import FrameDecoder, encode_frame
+from rh5_bringup.hardware.rig import DriverLoop, sine_centre
+from rh5_bringup.hardware.transports import open_transport
+from rh5_bringup.orchestration.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py.names import NUM_JOINTS
 from rh5_msgs_py.realtime import LoopTimer

@@ -21,7 +21,7 @@ import rclpy
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 
-from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
+from rh5_bringup.orchestration.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_hyrodyn_mapper.mapping import RobotMapper, robot_mapper
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec

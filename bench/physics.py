@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from rh5_bringup.ndlcom.payloads import CommandMode
+from rh5_bringup.hardware.ndlcom.payloads import CommandMode
 from rh5_bringup.sim.physics import build_physics
 from rh5_msgs_py.names import NUM_ACTUATORS
 

@@ -27,7 +27,7 @@ import rclpy
 from rclpy.signals import SignalHandlerOptions
 from rosbags.highlevel import AnyReader
 
-from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
+from rh5_bringup.orchestration.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_bringup.recording import read_bag_info
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec

@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from rh5_bringup.ndlcom.payloads import CommandMode
+from rh5_bringup.hardware.ndlcom.payloads import CommandMode
 from rh5_bringup.sim.actuator_model import NOMINAL_DT, ActuatorParams, default_params, parameter_table
 from rh5_bringup.sim.actuators import ActuatorBank
 

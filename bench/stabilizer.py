@@ -20,8 +20,8 @@ from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
-from rh5_bringup.cli import call_trigger
-from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
+from rh5_bringup.orchestration.cli import call_trigger
+from rh5_bringup.orchestration.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec, joint_trajectory_to_msg
 from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS

@@ -21,7 +21,7 @@ from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from tf2_msgs.msg import TFMessage
 
-from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
+from rh5_bringup.orchestration.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec
 from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS

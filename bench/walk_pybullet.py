@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rh5_bringup.report.figures import replay_figure
-from rh5_bringup.report.metrics import BASE_BAND_M
+from rh5_bringup.analysis.figures import replay_figure
+from rh5_bringup.analysis.metrics import BASE_BAND_M
 from rh5_bringup.sim.replay import CONTROLLERS, replay
 from rh5_msgs_py.trajectory_file import TrajectoryData, load_trajectory
 from rh5_planner.limit_analysis import FOOT_SIZE_M

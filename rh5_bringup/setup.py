@@ -28,8 +28,12 @@ setup(
         *share_files("config"),
         *share_files("viz"),
     ],
-    # The NDLCom deframing loop in C (rh5_bringup/ndlcom/_framing.c): the 1 kHz cycle's per-byte work.
-    ext_modules=[Extension(f"{PACKAGE}.ndlcom._framing", [f"{PACKAGE}/ndlcom/_framing.c"], extra_compile_args=["-O2"])],
+    # The NDLCom deframing loop in C (rh5_bringup/hardware/ndlcom/_framing.c): the 1 kHz cycle's per-byte work.
+    ext_modules=[
+        Extension(
+            f"{PACKAGE}.hardware.ndlcom._framing", [f"{PACKAGE}/hardware/ndlcom/_framing.c"], extra_compile_args=["-O2"]
+        )
+    ],
     install_requires=["setuptools"],
     zip_safe=False,
     maintainer="RH5 control suite developers",
@@ -39,11 +43,11 @@ setup(
     tests_require=["pytest"],
     entry_points={
         "console_scripts": [
-            "control_node = rh5_bringup.control_node:main",
-            "driver_node = rh5_bringup.driver_node:main",
-            "sim_hardware_node = rh5_bringup.sim_hardware_node:main",
-            "recorder_node = rh5_bringup.recorder_node:main",
-            "rh5 = rh5_bringup.cli:main",
+            "control_node = rh5_bringup.control.node:main",
+            "driver_node = rh5_bringup.hardware.driver_node:main",
+            "sim_hardware_node = rh5_bringup.sim.hardware_node:main",
+            "recorder_node = rh5_bringup.recording.recorder_node:main",
+            "rh5 = rh5_bringup.orchestration.cli:main",
         ],
     },
 )

@@ -63,7 +63,7 @@ def boards_and_driver(
     """``with boards_and_driver(log_name, **driver_parameters) as run``: the sim_hardware node on a free port and a
     stand-alone driver node linked to it (0.2 s silence and 0.5 s command rules unless given), both in the
     graph; on leaving, both must have exited cleanly."""
-    from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
+    from rh5_bringup.orchestration.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 
     @contextmanager
     def run(log_name: str, **driver_parameters: Any) -> Iterator[SuiteRun]:

@@ -12,7 +12,7 @@ from typing import Any
 
 import pytest
 
-from rh5_bringup.launcher import wait_for_nodes
+from rh5_bringup.orchestration.launcher import wait_for_nodes
 from rh5_msgs_py.ros_env import chosen_domain_id
 
 pytestmark = [pytest.mark.ros]

@@ -17,7 +17,7 @@ from typing import Any
 
 import pytest
 
-from rh5_bringup.launcher import wait_for_nodes
+from rh5_bringup.orchestration.launcher import wait_for_nodes
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("rh5_msgs_py", "rh5_hyrodyn_mapper", "rh5_planner", "rh5_joint_stabilizer", "rh5_bringup")

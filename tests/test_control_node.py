@@ -17,7 +17,7 @@ from typing import Any
 
 import pytest
 
-from rh5_bringup.launcher import (
+from rh5_bringup.orchestration.launcher import (
     Bringup,
     NodeSpec,
     SuiteRun,
@@ -185,7 +185,7 @@ def test_hosted_nodes_wake_only_for_work_and_follow_the_boards_clock(ros_graph: 
     from rclpy.clock_type import ClockType
     from rclpy.parameter import Parameter
 
-    from rh5_bringup.control_node import BoardTimeClocks
+    from rh5_bringup.control.node import BoardTimeClocks
     from rh5_hyrodyn_mapper.mapper_node import MapperNode
     from rh5_joint_stabilizer.stabilizer_node import StabilizerNode
 

@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 
-from rh5_bringup.cli import call_set_bool, call_trigger
+from rh5_bringup.orchestration.cli import call_set_bool, call_trigger
 
 pytestmark = pytest.mark.ros
 

@@ -15,13 +15,13 @@ from typing import Any
 import numpy as np
 import pytest
 
-from rh5_bringup.cli import call_trigger
-from rh5_bringup.driver_node import actuator_limits
-from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
-from rh5_bringup.ndlcom.board_map import load_board_map
-from rh5_bringup.ndlcom.payloads import CommandMode
-from rh5_bringup.rig import LINEAR, SINE_AMPLITUDE, DriverLoop, sine_centre
-from rh5_bringup.transports import open_transport
+from rh5_bringup.hardware.driver_node import actuator_limits
+from rh5_bringup.hardware.ndlcom.board_map import load_board_map
+from rh5_bringup.hardware.ndlcom.payloads import CommandMode
+from rh5_bringup.hardware.rig import LINEAR, SINE_AMPLITUDE, DriverLoop, sine_centre
+from rh5_bringup.hardware.transports import open_transport
+from rh5_bringup.orchestration.cli import call_trigger
+from rh5_bringup.orchestration.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import diagnostics_from_msg, joint_state_from_msg, joint_state_to_msg

@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 
-from rh5_bringup.experiment import SIM_STALL_S, _Monitor
+from rh5_bringup.orchestration.experiment import SIM_STALL_S, _Monitor
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
+from rh5_bringup.orchestration.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import joint_state_to_msg, to_duration_msg
 from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS

@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from rh5_bringup.cli import call_set_bool
-from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
+from rh5_bringup.orchestration.cli import call_set_bool
+from rh5_bringup.orchestration.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import diagnostics_from_msg, joint_state_to_msg

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
+from rh5_bringup.orchestration.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import diagnostics_from_msg, joint_state_from_msg, joint_state_to_msg

@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 import yaml
 
-from rh5_bringup.launcher import load_bringup
+from rh5_bringup.orchestration.launcher import load_bringup
 from rh5_msgs_py.parameters import load_spec
 
 pytestmark = pytest.mark.ros
@@ -36,8 +36,8 @@ def _gains_file(tmp: Path) -> str:
 
 def effects(tmp: Path, write_trajectory: Callable[..., Path]) -> dict[str, tuple[Callable[[], Any], dict[str, Effect]]]:
     """Per node: how to build it, and per writable parameter a value and the check of its effect."""
-    from rh5_bringup.driver_node import DriverNode
-    from rh5_bringup.sim_hardware_node import SimHardwareNode
+    from rh5_bringup.hardware.driver_node import DriverNode
+    from rh5_bringup.sim.hardware_node import SimHardwareNode
     from rh5_hyrodyn_mapper.mapper_node import MapperNode
     from rh5_joint_stabilizer.stabilizer_node import StabilizerNode
     from rh5_planner.planner_node import PlannerNode

@@ -13,8 +13,8 @@ from typing import Any
 
 import pytest
 
-from rh5_bringup.launcher import check_parameter_names, load_bringup, wait_for_nodes
-from rh5_bringup.params_files import CONFIG_DIR, main, render_params_file
+from rh5_bringup.orchestration.launcher import check_parameter_names, load_bringup, wait_for_nodes
+from rh5_bringup.orchestration.params_files import CONFIG_DIR, main, render_params_file
 from rh5_msgs_py.node_runtime import STACKS_SIGNAL
 
 pytestmark = [pytest.mark.ros]

@@ -11,7 +11,7 @@ from typing import Any
 
 import pytest
 
-from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
+from rh5_bringup.orchestration.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import joint_trajectory_from_msg, status_from_msg, wrench_from_msg
 from rh5_msgs_py.names import JOINT_NAMES

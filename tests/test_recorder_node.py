@@ -30,10 +30,10 @@ from mcap.stream_reader import StreamReader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 
-from rh5_bringup.fastdds_shm import remove_stale
-from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
-from rh5_bringup.recorder_node import default_bag_folder, offered_qos, recording_qos
+from rh5_bringup.orchestration.fastdds_shm import remove_stale
+from rh5_bringup.orchestration.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_bringup.recording import bag_files, mcap_file_of
+from rh5_bringup.recording.recorder_node import default_bag_folder, offered_qos, recording_qos
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec
 from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS

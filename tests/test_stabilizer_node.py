@@ -10,8 +10,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from rh5_bringup.cli import call_trigger
-from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
+from rh5_bringup.orchestration.cli import call_trigger
+from rh5_bringup.orchestration.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import diagnostics_from_msg, joint_state_to_msg, joint_trajectory_to_msg
 from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS

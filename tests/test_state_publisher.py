@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
+from rh5_bringup.orchestration.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
 from rh5_hyrodyn_mapper.model import robot_model
 from rh5_hyrodyn_mapper.tf_tree import KinematicTree, urdf_links
 from rh5_msgs_py import interfaces

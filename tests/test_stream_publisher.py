@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from rh5_bringup.stream_publisher import STREAMS, StreamPublisherProcess
+from rh5_bringup.control.stream_publisher import STREAMS, StreamPublisherProcess
 
 pytestmark = pytest.mark.ros
 

@@ -17,9 +17,9 @@ import pytest
 import yaml
 from rosbags.highlevel import AnyReader
 
-from rh5_bringup.cli import call_trigger
-from rh5_bringup.fastdds_shm import SHM_DIR, family, in_use_shm_files, shm_files_of
-from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, load_bringup, wait_for_nodes
+from rh5_bringup.orchestration.cli import call_trigger
+from rh5_bringup.orchestration.fastdds_shm import SHM_DIR, family, in_use_shm_files, shm_files_of
+from rh5_bringup.orchestration.launcher import Bringup, NodeSpec, SuiteRun, load_bringup, wait_for_nodes
 from rh5_bringup.recording import read_bag_info
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.names import JOINT_NAMES
@@ -334,7 +334,9 @@ def _bringup_file(folder: Path, bag: Path) -> Path:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    document = yaml.safe_load(resources.files("rh5_bringup").joinpath("bringup.yaml").read_text(encoding="utf-8"))
+    document = yaml.safe_load(
+        resources.files("rh5_bringup.orchestration").joinpath("bringup.yaml").read_text(encoding="utf-8")
+    )
     extra = {"recorder": {"output": str(bag)}, "sim_hardware": {"listen_port": port}, "driver": {"router_port": port}}
     for node in document["nodes"]:
         node["parameters"] = {**(node.get("parameters") or {}), **extra.get(node["name"], {})}

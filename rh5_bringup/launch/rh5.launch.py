@@ -1,4 +1,4 @@
-# Generated from rh5_bringup/bringup.yaml by `python -m rh5_bringup.launch_files`: do not edit by hand.
+# Generated from orchestration/bringup.yaml by `python -m rh5_bringup.orchestration.launch_files`: do not edit by hand.
 """Launch the RH5 control suite:
 `ros2 launch rh5_bringup rh5.launch.py [sim:=kinematic|physics] [driver_autostart:=none|configure|activate]`.
 

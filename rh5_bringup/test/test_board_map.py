@@ -10,13 +10,13 @@ from typing import Any
 import pytest
 import yaml
 
-from rh5_bringup.ndlcom.board_map import (
+from rh5_bringup.hardware.ndlcom.board_map import (
     BoardMapError,
     default_board_map_path,
     load_board_map,
     parse_board_map,
 )
-from rh5_bringup.ndlcom.codec import BROADCAST, RESERVED
+from rh5_bringup.hardware.ndlcom.codec import BROADCAST, RESERVED
 from rh5_msgs_py.names import ACTUATOR_NAMES, LINEAR_ACTUATOR_NAMES
 
 Document = dict[str, Any]

@@ -7,10 +7,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rh5_bringup.ndlcom.board_map import load_board_map
-from rh5_bringup.ndlcom.codec import FrameDecoder, FrameEncoder
-from rh5_bringup.ndlcom.command_frames import CommandFrames
-from rh5_bringup.ndlcom.payloads import CommandMode, decode_command, encode_commands
+from rh5_bringup.hardware.ndlcom.board_map import load_board_map
+from rh5_bringup.hardware.ndlcom.codec import FrameDecoder, FrameEncoder
+from rh5_bringup.hardware.ndlcom.command_frames import CommandFrames
+from rh5_bringup.hardware.ndlcom.payloads import CommandMode, decode_command, encode_commands
 
 BOARD_MAP = load_board_map()
 TABLE = BOARD_MAP.scaling_table()

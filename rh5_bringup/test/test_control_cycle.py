@@ -14,20 +14,20 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from rh5_bringup.control_cycle import ControlCycle
-from rh5_bringup.driver import DriverCore
-from rh5_bringup.driver_node import actuator_limits
-from rh5_bringup.ndlcom.board_map import BoardMap, load_board_map
-from rh5_bringup.ndlcom.codec import FrameEncoder
-from rh5_bringup.ndlcom.payloads import (
+from rh5_bringup.control.cycle import ControlCycle
+from rh5_bringup.hardware.driver import DriverCore
+from rh5_bringup.hardware.driver_node import actuator_limits
+from rh5_bringup.hardware.ndlcom.board_map import BoardMap, load_board_map
+from rh5_bringup.hardware.ndlcom.codec import FrameEncoder
+from rh5_bringup.hardware.ndlcom.payloads import (
     Command,
     CommandMode,
     TelemetryArrays,
     decode_command,
     encode_telemetry_many,
 )
-from rh5_bringup.rig import sine_centre
-from rh5_bringup.transports import open_transport
+from rh5_bringup.hardware.rig import sine_centre
+from rh5_bringup.hardware.transports import open_transport
 from rh5_hyrodyn_mapper.mapper_core import MapperCore
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_hyrodyn_mapper.model import joint_limits

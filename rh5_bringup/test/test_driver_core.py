@@ -11,10 +11,10 @@ import time
 
 import numpy as np
 
-from rh5_bringup.driver_node import actuator_limits
-from rh5_bringup.ndlcom.board_map import load_board_map
-from rh5_bringup.ndlcom.codec import Frame, encode_frame
-from rh5_bringup.ndlcom.payloads import (
+from rh5_bringup.hardware.driver_node import actuator_limits
+from rh5_bringup.hardware.ndlcom.board_map import load_board_map
+from rh5_bringup.hardware.ndlcom.codec import Frame, encode_frame
+from rh5_bringup.hardware.ndlcom.payloads import (
     Command,
     CommandMode,
     ErrorFlags,
@@ -23,10 +23,10 @@ from rh5_bringup.ndlcom.payloads import (
     encode_command,
     encode_telemetry,
 )
-from rh5_bringup.rig import LINEAR, DriverLoop, sine_centre
+from rh5_bringup.hardware.rig import LINEAR, DriverLoop, sine_centre
+from rh5_bringup.hardware.transports import open_transport
 from rh5_bringup.sim.actuators import ActuatorBank
 from rh5_bringup.sim.boards import BOARD_PERIOD_NS, COMMAND_PACE_GRACE_NS, BoardEmulator, BoardsServer
-from rh5_bringup.transports import open_transport
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py.names import NUM_JOINTS
 
@@ -122,7 +122,7 @@ def test_paced_boards_wait_for_a_late_driver_and_tick_again_when_it_is_gone() ->
 def test_the_board_clock_stamps_forward_and_follows_a_restarted_simulation() -> None:
     """The stamp under use_sim_time is the boards' clock: a late frame with an older time does not move it back,
     a clock that went back by more than a second (a simulation started anew) is followed, not outwaited."""
-    from rh5_bringup.driver import BOARD_CLOCK_RESTART_NS, DriverCore
+    from rh5_bringup.hardware.driver import BOARD_CLOCK_RESTART_NS, DriverCore
 
     board_map = load_board_map()
     link = open_transport("udp", local=("127.0.0.1", 0), remote=("127.0.0.1", 9), receivers=[board_map.pc_address])

@@ -12,8 +12,8 @@ from typing import Any
 import pytest
 import yaml
 
-from rh5_bringup import launch_files
-from rh5_bringup.launcher import load_bringup
+from rh5_bringup.orchestration import launch_files
+from rh5_bringup.orchestration.launcher import load_bringup
 
 
 class _Recorded:

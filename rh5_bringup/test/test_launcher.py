@@ -8,8 +8,14 @@ from pathlib import Path
 
 import pytest
 
-from rh5_bringup.cli import build_parser, main
-from rh5_bringup.launcher import NodeSpec, composed_command, composed_parameters, load_bringup, node_command
+from rh5_bringup.orchestration.cli import build_parser, main
+from rh5_bringup.orchestration.launcher import (
+    NodeSpec,
+    composed_command,
+    composed_parameters,
+    load_bringup,
+    node_command,
+)
 from rh5_msgs_py.parameters import load_spec
 
 PACKAGE_OF_SPEC = {

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rh5_bringup.ndlcom.codec import (
+from rh5_bringup.hardware.ndlcom.codec import (
     FCS_TABLE,
     MAX_ENCODED_SIZE,
     DecoderStats,

@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rh5_bringup.ndlcom.board_map import load_board_map
-from rh5_bringup.ndlcom.payloads import (
+from rh5_bringup.hardware.ndlcom.board_map import load_board_map
+from rh5_bringup.hardware.ndlcom.payloads import (
     COMMAND_LAYOUT,
     TELEMETRY_LAYOUT,
     Command,

@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 import pytest
 
-from rh5_bringup.ndlcom.payloads import CommandMode
+from rh5_bringup.hardware.ndlcom.payloads import CommandMode
 from rh5_bringup.sim.actuator_model import NOMINAL_DT, ActuatorParams, default_params
 from rh5_bringup.sim.actuators import ActuatorBank, ActuatorFlags, ActuatorMeasurement
 from rh5_msgs_py.names import ACTUATOR_NAMES, LINEAR_ACTUATOR_NAMES

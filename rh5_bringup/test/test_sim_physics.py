@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from rh5_bringup.ndlcom.payloads import CommandMode
+from rh5_bringup.hardware.ndlcom.payloads import CommandMode
 from rh5_bringup.sim.physics import PhysicsActuatorBank, PhysicsWorld, build_physics, contact_links
 from rh5_hyrodyn_mapper.model import robot_model
 from rh5_msgs_py.names import NUM_ACTUATORS, NUM_JOINTS
@@ -157,12 +157,12 @@ def test_node_in_physics_mode_answers_the_driver_and_publishes_ground_truth(
 ) -> None:
     import rclpy
 
-    from rh5_bringup.cli import call_trigger
-    from rh5_bringup.driver_node import actuator_limits
-    from rh5_bringup.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
-    from rh5_bringup.ndlcom.board_map import load_board_map
-    from rh5_bringup.rig import DriverLoop, sine_centre
-    from rh5_bringup.transports import open_transport
+    from rh5_bringup.hardware.driver_node import actuator_limits
+    from rh5_bringup.hardware.ndlcom.board_map import load_board_map
+    from rh5_bringup.hardware.rig import DriverLoop, sine_centre
+    from rh5_bringup.hardware.transports import open_transport
+    from rh5_bringup.orchestration.cli import call_trigger
+    from rh5_bringup.orchestration.launcher import Bringup, NodeSpec, SuiteRun, wait_for_nodes
     from rh5_hyrodyn_mapper.mapping import robot_mapper
     from rh5_msgs_py import interfaces
 

@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rh5_bringup.ndlcom._framing import decode_telemetry_into
-from rh5_bringup.ndlcom.board_map import load_board_map
-from rh5_bringup.ndlcom.payloads import (
+from rh5_bringup.hardware.ndlcom._framing import decode_telemetry_into
+from rh5_bringup.hardware.ndlcom.board_map import load_board_map
+from rh5_bringup.hardware.ndlcom.payloads import (
     MAX_MODE,
     TEMPERATURE_LSB,
     CommandMode,

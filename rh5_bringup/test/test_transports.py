@@ -14,8 +14,8 @@ from collections.abc import Iterator
 import can
 import pytest
 
-from rh5_bringup.ndlcom.codec import BROADCAST, Frame, FrameEncoder, encode_frame
-from rh5_bringup.transports import (
+from rh5_bringup.hardware.ndlcom.codec import BROADCAST, Frame, FrameEncoder, encode_frame
+from rh5_bringup.hardware.transports import (
     TRANSPORTS,
     Transport,
     TransportInitError,
@@ -24,8 +24,8 @@ from rh5_bringup.transports import (
     open_transport,
     transport_class,
 )
-from rh5_bringup.transports.can import DEFAULT_BASE_ID, CanTransport, can_messages, frame_sender
-from rh5_bringup.transports.udp import UdpTransport
+from rh5_bringup.hardware.transports.can import DEFAULT_BASE_ID, CanTransport, can_messages, frame_sender
+from rh5_bringup.hardware.transports.udp import UdpTransport
 
 PC, KNEE, HIP = 0x01, 0x43, 0x42
 LOCAL = ("127.0.0.1", 0)
@@ -148,7 +148,7 @@ def test_context_manager_shuts_down() -> None:
 def test_forgotten_transport_warns_and_cleans_up(caplog: pytest.LogCaptureFixture) -> None:
     transport = UdpTransport(LOCAL)
     sock = transport._sock
-    with caplog.at_level(logging.WARNING, logger="rh5_bringup.transports.base"):
+    with caplog.at_level(logging.WARNING, logger="rh5_bringup.hardware.transports.base"):
         del transport
         gc.collect()
     assert "UdpTransport was not properly shut down" in caplog.text
@@ -246,7 +246,7 @@ def test_open_transport_by_name(channel: str) -> None:
 
 
 def test_importing_the_factory_does_not_import_python_can() -> None:
-    code = "import sys, rh5_bringup.transports; assert 'can' not in sys.modules; print('lazy')"
+    code = "import sys, rh5_bringup.hardware.transports; assert 'can' not in sys.modules; print('lazy')"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=False)
     assert result.stdout.strip() == "lazy", result.stderr
 

@@ -32,7 +32,7 @@ DIAGNOSTICS_PERIOD_S: Final = 1.0
 class MapperNode(SuiteNode):
     """Maps between joint space and actuator space in both directions.
 
-    ``composed=True``: hosted by the control process (rh5_bringup.control_node), whose cycle calls ``core``
+    ``composed=True``: hosted by the control process (rh5_bringup.control.node), whose cycle calls ``core``
     directly and publishes the results through ``publish_joint_states`` / ``publish_actuator_commands``;
     the node then subscribes to no 1 kHz stream.
     """

@@ -63,7 +63,7 @@ class TrackingWindow:
 class StabilizerNode(SuiteNode):
     """ROS wiring around StabilizerCore and its 1 kHz loop.
 
-    ``composed=True``: hosted by the control process (rh5_bringup.control_node), whose cycle calls ``step``
+    ``composed=True``: hosted by the control process (rh5_bringup.control.node), whose cycle calls ``step``
     with the same cycle's measurement and publishes ``joint_commands``; the node then runs no loop and
     subscribes to neither ``joint_states`` nor the driver's estop topic (the cycle passes the latch on).
     """

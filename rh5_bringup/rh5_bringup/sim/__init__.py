@@ -1,12 +1,14 @@
-"""Simulated RH5 hardware: models of what the boards and the robot do, free of ROS.
+"""Simulated RH5 hardware: models of what the boards and the robot do, free of ROS, and the node that serves them.
 
-Names resolve lazily (PEP 562): importing one model does not import the others (physics pulls in PyBullet).
+Layer: imports ``hardware`` (codec, transports, board map), the mapper and PyBullet; nothing above it.
+Names resolve lazily: importing one model does not import the others (physics pulls in PyBullet).
 """
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from rh5_msgs_py.lazy_exports import lazy_exports
 
 if TYPE_CHECKING:
     from .actuator_model import NOMINAL_DT, SUBSTEPS, ActuatorParams, ActuatorState, default_params
@@ -26,13 +28,4 @@ __all__ = [
     "ActuatorState",
     "default_params",
 ]
-
-
-def __getattr__(name: str) -> Any:
-    """Import the submodule that defines ``name`` on first use."""
-    if name not in _EXPORTS:
-        msg = f"module {__name__!r} has no attribute {name!r}"
-        raise AttributeError(msg)
-    value = getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_exports(__name__, _EXPORTS)

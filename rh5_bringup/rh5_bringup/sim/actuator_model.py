@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
-from rh5_bringup.ndlcom.payloads import CommandMode
+from rh5_bringup.hardware.ndlcom.payloads import CommandMode
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py.names import ACTUATOR_NAMES, LINEAR_ACTUATOR_NAMES, NUM_ACTUATORS
 

@@ -70,7 +70,7 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from rh5_bringup.ndlcom.payloads import CommandMode
+from rh5_bringup.hardware.ndlcom.payloads import CommandMode
 from rh5_bringup.sim.actuator_model import ActuatorParams, ActuatorState, default_params, read_only
 
 FloatArray = npt.NDArray[np.float64]

@@ -16,9 +16,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rh5_bringup.ndlcom.board_map import BoardMap
-from rh5_bringup.ndlcom.codec import Frame, FrameEncoder
-from rh5_bringup.ndlcom.payloads import (
+from rh5_bringup.hardware.ndlcom.board_map import BoardMap
+from rh5_bringup.hardware.ndlcom.codec import Frame, FrameEncoder
+from rh5_bringup.hardware.ndlcom.payloads import (
     CommandMode,
     ErrorFlags,
     PayloadError,
@@ -27,8 +27,8 @@ from rh5_bringup.ndlcom.payloads import (
     decode_command,
     encode_telemetry_many,
 )
+from rh5_bringup.hardware.transports.base import Transport
 from rh5_bringup.sim.actuators import ActuatorBank, ActuatorFlags, ActuatorMeasurement
-from rh5_bringup.transports.base import Transport
 from rh5_msgs_py.realtime import LoopThread, set_timer_slack
 
 BOARD_COMMAND_TIMEOUT_NS = 20_000_000  # the boards' own watchdog

@@ -27,7 +27,7 @@ from typing import Final, Literal
 import numpy as np
 import numpy.typing as npt
 
-from rh5_bringup.ndlcom.payloads import CommandMode
+from rh5_bringup.hardware.ndlcom.payloads import CommandMode
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_hyrodyn_mapper.model import joint_limits
 from rh5_msgs_py.names import NUM_ACTUATORS, NUM_JOINTS
