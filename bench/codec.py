@@ -2,7 +2,9 @@
 
 Not a test. One "cycle" is what the 1 kHz driver handles per millisecond: 32 boards, one 40-byte TELEMETRY payload
 each (and one 20-byte COMMAND each). Prints frames/s for framing (encode, decode of a whole cycle fed at once, decode
-fed frame by frame as UDP datagrams would, encode+decode) and microseconds per actuator for the payload codecs.
+fed frame by frame as UDP datagrams would, encode+decode) and microseconds per actuator for the payload codecs: first
+what runs every millisecond (the driver's command frames, the simulated boards' telemetry encoder and command
+decoder, the batch codecs), then the single-board forms, which are the batch codecs on a batch of one (tests, tools).
 Run:
     .venv/bin/python bench/codec.py [--seconds 1.0]
 """
@@ -16,8 +18,11 @@ import random
 import time
 from collections.abc import Callable
 
+import numpy as np
+
 from rh5_bringup.hardware.ndlcom.board_map import load_board_map
-from rh5_bringup.hardware.ndlcom.codec import FrameDecoder, encode_frame, fcs16, fcs16_reference
+from rh5_bringup.hardware.ndlcom.codec import FrameDecoder, FrameEncoder, encode_frame, fcs16, fcs16_reference
+from rh5_bringup.hardware.ndlcom.command_frames import CommandFrames
 from rh5_bringup.hardware.ndlcom.payloads import (
     Command,
     CommandMode,
@@ -30,6 +35,7 @@ from rh5_bringup.hardware.ndlcom.payloads import (
     encode_command,
     encode_commands,
     encode_telemetry,
+    encode_telemetry_many,
 )
 
 TARGET_FRAMES_PER_S = 200_000
@@ -127,19 +133,31 @@ def main(argv: list[str] | None = None) -> None:
     modes = [CommandMode.POSITION_FF] * n
     setpoints = [0.3 if b.kind == "linear" else 0.1 for b in boards]
     zeros = [0.0] * n
-    print("\npayloads (us per actuator)")
+    frames_writer = CommandFrames(FrameEncoder(pc), [b.address for b in boards], table)
+    arrays = decode_telemetry_many(payloads, table)
+    setpoint_array, zero_array = np.asarray(setpoints), np.zeros(n)
+    print("\npayloads, the 1 kHz paths (us per actuator)")
     costs = {
-        "encode_command": rate(lambda: encode_command(command, scaling), 1, seconds),
-        "decode_command": rate(lambda: decode_command(command_payload, scaling), 1, seconds),
-        "encode_telemetry": rate(lambda: encode_telemetry(telemetry[0], scaling), 1, seconds),
-        "decode_telemetry": rate(lambda: decode_telemetry(payloads[0], boards[0].scaling), 1, seconds),
+        f"CommandFrames.frames (driver, {n} framed)": rate(
+            lambda: frames_writer.frames(CommandMode.POSITION_FF, 1, setpoint_array, zero_array, zero_array), n, seconds
+        ),
+        f"encode_telemetry_many (sim, batch of {n})": rate(lambda: encode_telemetry_many(arrays, table), n, seconds),
+        "decode_command (sim, per frame)": rate(lambda: decode_command(command_payload, scaling), 1, seconds),
         f"encode_commands (batch of {n})": rate(
             lambda: encode_commands(modes, setpoints, zeros, zeros, sequence=1, table=table), n, seconds
         ),
         f"decode_telemetry_many (batch of {n})": rate(lambda: decode_telemetry_many(payloads, table), n, seconds),
     }
     for name, value in costs.items():
-        print(f"  {name:<38} {1e6 / value:6.2f} us")
+        print(f"  {name:<42} {1e6 / value:6.2f} us")
+    print("\npayloads, one board (a batch of one: tests and tools, us per call)")
+    single = {
+        "encode_command": rate(lambda: encode_command(command, scaling), 1, seconds),
+        "encode_telemetry": rate(lambda: encode_telemetry(telemetry[0], scaling), 1, seconds),
+        "decode_telemetry": rate(lambda: decode_telemetry(payloads[0], boards[0].scaling), 1, seconds),
+    }
+    for name, value in single.items():
+        print(f"  {name:<42} {1e6 / value:6.2f} us")
 
 
 if __name__ == "__main__":

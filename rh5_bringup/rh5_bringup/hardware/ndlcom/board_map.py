@@ -16,7 +16,7 @@ from typing import Any, Final, Literal, NamedTuple
 import yaml
 
 from rh5_bringup.hardware.ndlcom.codec import BROADCAST, RESERVED
-from rh5_bringup.hardware.ndlcom.payloads import Quantity, Scaling, ScalingTable
+from rh5_bringup.hardware.ndlcom.scaling import Quantity, Scaling, ScalingTable
 from rh5_msgs_py.names import ACTUATOR_NAMES, LINEAR_ACTUATOR_NAMES
 
 __all__ = ["FORMAT", "KINDS", "TRANSPORTS", "Board", "BoardMap", "BoardMapError", "load_board_map", "parse_board_map"]

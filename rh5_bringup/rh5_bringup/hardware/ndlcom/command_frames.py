@@ -15,7 +15,8 @@ import numpy as np
 
 from rh5_bringup.hardware.ndlcom._framing import encode_frames
 from rh5_bringup.hardware.ndlcom.codec import FrameEncoder
-from rh5_bringup.hardware.ndlcom.payloads import COMMAND_LAYOUT, COMMAND_VERSION, CommandMode, PayloadType, ScalingTable
+from rh5_bringup.hardware.ndlcom.payloads import COMMAND_LAYOUT, COMMAND_VERSION, CommandMode, PayloadType
+from rh5_bringup.hardware.ndlcom.scaling import ScalingTable
 
 _PAYLOAD_DTYPE: Final = np.dtype(
     {
