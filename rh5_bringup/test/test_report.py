@@ -23,8 +23,8 @@ from rosbags.typesys import Stores, get_typestore
 from rh5_bringup.analysis import NotABagError, ReportError, build_report, default_out_dir, load_recording, write_report
 from rh5_bringup.analysis.__main__ import main as report_main
 from rh5_bringup.analysis.cdr import decode_joint_states, decode_stamped_floats
-from rh5_bringup.analysis.load import PlannedBase, PlannedJoints
 from rh5_bringup.analysis.metrics import resample
+from rh5_bringup.analysis.records import PlannedBase, PlannedJoints
 from rh5_bringup.analysis.results import planned_base_for
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import (
@@ -377,7 +377,8 @@ def test_cli_extra_joints_and_bad_input(walk_bag: Path, tmp_path: Path, capsys: 
 
 def test_clock_moves_every_time_axis_onto_simulated_time() -> None:
     """A simulation at half real time: 2 s of recorder time after the first /clock message are 1 s simulated."""
-    from rh5_bringup.analysis.load import DiagnosticRecord, PoseSeries, Recording, on_simulated_time
+    from rh5_bringup.analysis.load import on_simulated_time
+    from rh5_bringup.analysis.records import DiagnosticRecord, PoseSeries, Recording
 
     t = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
     pose = PoseSeries("/sim/base_pose", t, np.zeros((5, 3)), np.tile([0.0, 0.0, 0.0, 1.0], (5, 1)), "header")
@@ -394,8 +395,9 @@ def test_clock_moves_every_time_axis_onto_simulated_time() -> None:
 
 def test_stream_rates_are_on_the_wall_clock_when_the_time_axis_is_simulated() -> None:
     """A 1 kHz stream recorded while the simulation ran at 0.25 x real time is 1 kHz, not 4 kHz of simulated time."""
-    from rh5_bringup.analysis.load import PoseSeries, Recording, on_simulated_time
+    from rh5_bringup.analysis.load import on_simulated_time
     from rh5_bringup.analysis.metrics import stream_timing
+    from rh5_bringup.analysis.records import PoseSeries, Recording
 
     t = np.arange(0.0, 2.0, 1e-3)
     pose = PoseSeries("/sim/base_pose", t, np.zeros((len(t), 3)), np.tile([0.0, 0.0, 0.0, 1.0], (len(t), 1)), "header")
@@ -412,8 +414,9 @@ def test_a_bag_recorded_on_simulated_time_keeps_its_times_and_measures_rates_on_
     """use_sim_time: the bag's times already are simulated (/clock logged at the time it carries), so nothing moves;
     a 1 kHz stream stamped in simulated time at 0.25 x real time still measures 1 kHz on its publish times, and the
     simulation's speed comes from /clock's publish times."""
-    from rh5_bringup.analysis.load import PoseSeries, Recording, recorded_on_simulated_time, with_wall_times
+    from rh5_bringup.analysis.load import recorded_on_simulated_time, with_wall_times
     from rh5_bringup.analysis.metrics import stream_timing
+    from rh5_bringup.analysis.records import PoseSeries, Recording
 
     wall0 = 1_795_000_000_000_000_000
     publish = wall0 + np.arange(0, 2_000_000_000, 1_000_000)  # 1 kHz on the wall clock

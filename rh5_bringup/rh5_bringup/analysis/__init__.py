@@ -15,7 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Final
 
-from rh5_bringup.analysis.load import NotABagError, Recording, ReportError, load_recording
+from rh5_bringup.analysis.load import load_recording
+from rh5_bringup.analysis.records import NotABagError, Recording, ReportError
 from rh5_bringup.analysis.results import Analysis, analyse, check_names
 
 __all__ = [

@@ -18,9 +18,9 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from rh5_bringup.analysis.load import FloatArray, JointSeries
 from rh5_bringup.analysis.markdown import number
 from rh5_bringup.analysis.metrics import BASE_BAND_M
+from rh5_bringup.analysis.records import FloatArray, JointSeries
 from rh5_bringup.analysis.results import Analysis
 from rh5_msgs_py.names import JOINT_NAMES, LINEAR_ACTUATOR_NAMES
 

@@ -6,7 +6,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TypeVar
 
-from rh5_bringup.analysis.load import JointSeries, PlannedBase, PlannedJoints, Recording, ReportError
 from rh5_bringup.analysis.metrics import (
     ACTUATOR_GROUPS,
     BaseDeviation,
@@ -27,6 +26,7 @@ from rh5_bringup.analysis.metrics import (
     stream_timing,
     tracking,
 )
+from rh5_bringup.analysis.records import JointSeries, PlannedBase, PlannedJoints, Recording, ReportError
 from rh5_bringup.analysis.timeline import TimeZero, trajectory_time_zero
 from rh5_msgs_py.names import ACTUATOR_NAMES, JOINT_GROUPS, JOINT_NAMES
 

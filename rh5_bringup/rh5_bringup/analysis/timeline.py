@@ -14,8 +14,8 @@ from typing import Final
 
 import numpy as np
 
-from rh5_bringup.analysis.load import FloatArray, JointSeries, PlannedJoints
 from rh5_bringup.analysis.metrics import Transition, interpolate_clamped, resample
+from rh5_bringup.analysis.records import FloatArray, JointSeries, PlannedJoints
 
 FIT_HORIZON_S: Final = 10.0
 """Seconds of the plan compared when aligning (enough to include motion, bounded cost)."""
