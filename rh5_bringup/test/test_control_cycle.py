@@ -7,7 +7,6 @@ put on the wire. So what reached the wire, and from which telemetry, is seen dir
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
@@ -15,7 +14,7 @@ import numpy as np
 import pytest
 
 from rh5_bringup.control.cycle import ControlCycle
-from rh5_bringup.hardware.driver import DriverCore
+from rh5_bringup.hardware.driver import STARTUP_GRACE_NS, DriverCore
 from rh5_bringup.hardware.driver_node import actuator_limits
 from rh5_bringup.hardware.ndlcom.board_map import BoardMap, load_board_map
 from rh5_bringup.hardware.ndlcom.codec import FrameEncoder
@@ -80,25 +79,43 @@ class Boards:
         return commands
 
 
+class SyntheticClock:
+    """The rig's time, set by the test: every reading moves it on by 1 us, as a real clock moves while the cycle
+    runs, so the rules' timeouts count cycles, not how busy the machine is."""
+
+    def __init__(self, start_ns: int = 1_000_000_000) -> None:
+        self.ns = start_ns
+
+    def __call__(self) -> int:
+        self.ns += 1_000
+        return self.ns
+
+    def advance(self, ns: int) -> None:
+        """Let ``ns`` pass without a cycle."""
+        self.ns += ns
+
+
 @dataclass
 class Rig:
-    """A composed cycle against the test's boards."""
+    """A composed cycle against the test's boards, on a synthetic clock."""
 
     cycle: ControlCycle
     driver: DriverCore
     stabilizer: StabilizerCore
     boards: Boards
+    clock: SyntheticClock
 
     def step(self, position: np.ndarray, **answer: tuple[str, ...]) -> list[Command]:
         """Boards answer with ``position``, the cycle runs once; returns what it put on the wire."""
         self.boards.answer(position, **answer)
-        self.cycle.step(time.monotonic_ns(), PERIOD_NS)
+        self.clock.advance(PERIOD_NS)
+        self.cycle.step(self.clock.ns, PERIOD_NS)
         return self.boards.commands()
 
     def start_holding_q0(self) -> None:
         """Enable the driver and play a trajectory that stands at Q0, measured at Q0."""
         assert self.driver.enable(True)[0]
-        at_rest = Measurement(Q0, np.zeros(NUM_JOINTS), time.monotonic_ns())
+        at_rest = Measurement(Q0, np.zeros(NUM_JOINTS), self.clock.ns)
         ok, why = self.stabilizer.request_start(at_rest)
         assert ok, why
         for _ in range(3):
@@ -113,8 +130,14 @@ def rig() -> Iterator[Rig]:
     link = open_transport(
         "udp", local=("127.0.0.1", 0), remote=boards.link.local_address, receivers=[board_map.pc_address]
     )
+    clock = SyntheticClock()
     driver = DriverCore(
-        board_map, link, LIMITS, command_timeout_ns=COMMAND_TIMEOUT_NS, silence_timeout_ns=SILENCE_TIMEOUT_NS
+        board_map,
+        link,
+        LIMITS,
+        command_timeout_ns=COMMAND_TIMEOUT_NS,
+        silence_timeout_ns=SILENCE_TIMEOUT_NS,
+        clock_ns=clock,
     )
     limits = joint_limits()
     stabilizer = StabilizerCore(
@@ -132,8 +155,8 @@ def rig() -> Iterator[Rig]:
     )
     assert ok, why
     cycle = ControlCycle(driver, MapperCore(MAPPER), stabilizer.update, estop_to_stabilizer=stabilizer.set_estop)
-    rig = Rig(cycle, driver, stabilizer, boards)
-    driver.write(time.monotonic_ns(), PERIOD_NS)  # the boards' router learns where the driver is
+    rig = Rig(cycle, driver, stabilizer, boards, clock)
+    driver.write(clock.ns, PERIOD_NS)  # the boards' router learns where the driver is
     boards.commands()
     try:
         yield rig
@@ -173,7 +196,7 @@ def test_commands_go_stale_when_the_stabilizer_stops(rig: Rig) -> None:
     rig.start_holding_q0()
     assert _modes(rig.step(CENTRE)) == {CommandMode.POSITION_FF}
     assert rig.stabilizer.request_stop()[0]
-    time.sleep(COMMAND_TIMEOUT_NS / 1e9 * 1.5)  # the last command outlives the timeout
+    rig.clock.advance(COMMAND_TIMEOUT_NS * 3 // 2)  # the last command outlives the timeout
     assert _modes(rig.step(CENTRE)) == {CommandMode.HOLD}
     assert rig.driver.counts["stale_command_cycles"] >= 1
 
@@ -181,9 +204,10 @@ def test_commands_go_stale_when_the_stabilizer_stops(rig: Rig) -> None:
 def test_a_silent_board_makes_every_board_hold(rig: Rig) -> None:
     rig.start_holding_q0()
     silent = (rig.boards.board_map.boards[5].name,)
-    deadline = time.monotonic() + 1.0
-    while not rig.driver.safe_hold_reason and time.monotonic() < deadline:
+    for _ in range((STARTUP_GRACE_NS + 3 * SILENCE_TIMEOUT_NS) // PERIOD_NS):  # the rule waits out the start-up
         commands = rig.step(CENTRE, silent=silent)
+        if rig.driver.safe_hold_reason:
+            break
     assert silent[0] in rig.driver.safe_hold_reason
     assert _modes(commands) == {CommandMode.HOLD}
     assert _modes(rig.step(CENTRE)) == {CommandMode.HOLD}  # latched until a new enable
@@ -218,7 +242,7 @@ def test_nan_and_out_of_limit_setpoints_never_reach_the_wire(
 
     rig.cycle._stabilize = broken  # the test swaps in a broken stabilizer
     seen = [rig.step(CENTRE) for _ in range(3)]
-    time.sleep(COMMAND_TIMEOUT_NS / 1e9 * 1.5)
+    rig.clock.advance(COMMAND_TIMEOUT_NS * 3 // 2)
     seen.append(rig.step(CENTRE))
     for commands in seen:
         efforts = np.array([c.effort_ff for c in commands])

@@ -150,3 +150,58 @@ def test_the_board_clock_stamps_forward_and_follows_a_restarted_simulation() -> 
     finally:
         boards.close()
         link.shutdown()
+
+
+def test_the_safety_rules_run_on_the_callers_clock() -> None:
+    """With a synthetic clock the staleness and silence rules' half second replays in milliseconds, and each rule
+    fires at the synthetic time it names: a command older than 100 ms is not sent, boards silent for 500 ms (and
+    as many cycles) stop the driving."""
+    from rh5_bringup.hardware.driver import ActuatorCommand, DriverCore
+
+    board_map = load_board_map()
+    link = open_transport("udp", local=("127.0.0.1", 0), remote=("127.0.0.1", 9), receivers=[board_map.pc_address])
+    start_ns, period_ns = 1_000_000_000, 1_000_000
+    now = [start_ns]
+    driver = DriverCore(
+        board_map,
+        link,
+        LIMITS,
+        command_timeout_ns=100_000_000,
+        silence_timeout_ns=500_000_000,
+        clock_ns=lambda: now[0],
+    )
+    boards = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        telemetry = Telemetry(CommandMode.HOLD, StatusFlags.NONE, ErrorFlags.NONE, 0, 0, 0.0, 0.0, 0.0, 0.0, 25.0)
+        boards.sendto(
+            b"".join(
+                encode_frame(board_map.pc_address, b.address, 0, encode_telemetry(telemetry, b.scaling))
+                for b in board_map
+            ),
+            link.local_address,
+        )
+        deadline = time.monotonic() + 2.0
+        while not driver.all_heard and time.monotonic() < deadline:
+            driver.read(now[0], period_ns)  # the synthetic clock stands still until every board is heard
+        assert driver.all_heard
+        assert driver.enable(True)[0]
+        driver.command.set(ActuatorCommand(CENTRE, np.zeros_like(CENTRE), np.zeros_like(CENTRE)), now[0])
+        wall = time.monotonic()
+        modes = []
+        while not driver.safe_hold_reason and now[0] < start_ns + 2_000_000_000:
+            now[0] += period_ns
+            driver.write(now[0], period_ns)
+            driver.read(now[0], period_ns)
+            modes.append(driver.mode)
+        wall = time.monotonic() - wall
+    finally:
+        boards.close()
+        link.shutdown()
+    first_hold = modes.index(CommandMode.HOLD)
+    assert set(modes[:first_hold]) == {CommandMode.POSITION_FF}
+    assert first_hold == 100  # the cycle at +101 ms: the command is 101 ms old
+    assert driver.counts["stale_command_cycles"] > 0
+    held_after_ms = (now[0] - start_ns) / 1e6
+    assert 500 < held_after_ms <= 502, held_after_ms
+    assert "boards silent" in driver.safe_hold_reason
+    assert wall < held_after_ms / 1e3, f"{wall:.3f} s of wall time for {held_after_ms:.0f} ms of rules"

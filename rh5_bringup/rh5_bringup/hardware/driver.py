@@ -82,7 +82,14 @@ class DriverCore:
         command_timeout_ns: int,
         silence_timeout_ns: int,
         on_event: Callable[[str], None] = lambda _text: None,
+        clock_ns: Callable[[], int] = time.monotonic_ns,
+        wall_clock_ns: Callable[[], int] = time.time_ns,
     ) -> None:
+        self.clock_ns = clock_ns
+        """Monotonic time [ns] for the safety rules and the latencies; a test passes a synthetic clock and replays
+        seconds of the rules in milliseconds."""
+        self.wall_clock_ns = wall_clock_ns
+        """Wall time [ns] for the readings' stamps without a simulation clock."""
         self.board_map = board_map
         self.transport = transport
         self.limits = limits
@@ -137,7 +144,7 @@ class DriverCore:
     def stamp_ns(self, sim_time: bool) -> int:
         """The stamp of what this cycle read: under use_sim_time the simulated boards' clock, which counts the
         simulation's time as /clock does (the time the sample was measured), else wall time."""
-        return self.board_time_ns if sim_time else time.time_ns()
+        return self.board_time_ns if sim_time else self.wall_clock_ns()
 
     # --- requests ----------------------------------------------------------------------------------------------------
 
@@ -146,7 +153,7 @@ class DriverCore:
         if on and self.estopped:
             return False, "refused: emergency stop is latched (call ~/reset_estop)"
         if on:
-            silent = self.silent_boards(time.monotonic_ns())
+            silent = self.silent_boards(self.clock_ns())
             if silent:
                 return False, f"refused: boards silent: {silent}"
             self.safe_hold_reason = ""
@@ -239,9 +246,9 @@ class DriverCore:
         ``frames_read`` how many frames it took.
         """
         self._start(now_ns, period_ns)
-        self.read_ns = time.monotonic_ns()
+        self.read_ns = self.clock_ns()
         self.frames_read = self._receive(self.read_ns)
-        silent = self.silent_boards(time.monotonic_ns())
+        silent = self.silent_boards(self.clock_ns())
         if silent and not self.safe_hold_reason:
             self.safe_hold_reason = f"boards silent for more than {self.silence_timeout_ns / 1e6:g} ms: {silent}"
             self.enabled = False
@@ -251,7 +258,7 @@ class DriverCore:
     def write(self, now_ns: int, period_ns: int) -> int:
         """Send one command frame per board: the setpoints of ``command``, or HOLD where a safety rule says so.
 
-        Returns when the frames were handed to the transport (monotonic ns).
+        Returns when the frames were handed to the transport (``clock_ns``).
         """
         self._start(now_ns, period_ns)
         mode, command = self._setpoints(now_ns)
@@ -261,7 +268,7 @@ class DriverCore:
         else:
             frames = self._frames.frames(mode, self.sequence, command.position, command.velocity, command.effort)
         self.transport.send_frames(frames)
-        sent_ns = time.monotonic_ns()
+        sent_ns = self.clock_ns()
         self._sent_ns[self.sequence % len(self._sent_ns)] = now_ns
         self.counts["cycles"] += 1
         self.sequence = (self.sequence + 1) & 0xFFFFFFFF
