@@ -15,8 +15,8 @@ from trajectory_msgs.msg import (
 
 from ._common import NS_PER_S, FloatArray
 from .joint_names import _listing, _unique_names
-from .joint_trajectory import _point_times_ns
-from .times import _check_increasing, _set_stamp, _times_to_ns, time_to_ns
+from .joint_trajectory import _point_times_ns, _timed_points, _trajectory
+from .times import _check_increasing, _times_to_ns, time_to_ns
 
 
 class BaseTrajectoryArrays(NamedTuple):
@@ -74,29 +74,19 @@ def base_trajectory_to_msg(
     acc = _rows_as_lists(accelerations, (n_points, 6), f"{what}.accelerations")
     assert pos is not None  # for the type checker
     assert quat is not None
-    secs, nanosecs = np.divmod(ns, NS_PER_S)
     points = []
-    for i, (sec, nanosec) in enumerate(zip(secs.tolist(), nanosecs.tolist(), strict=True)):
+    for i, point in enumerate(_timed_points(MultiDOFJointTrajectoryPoint, ns)):
         transform = Transform()
         tr, rot = transform.translation, transform.rotation
         tr.x, tr.y, tr.z = pos[i]
         rot.x, rot.y, rot.z, rot.w = quat[i]
-        point = MultiDOFJointTrajectoryPoint()
         point.transforms = [transform]
         if vel is not None:
             point.velocities = [_twist(vel[i])]
         if acc is not None:
             point.accelerations = [_twist(acc[i])]
-        tfs = point.time_from_start
-        tfs.sec = sec
-        tfs.nanosec = nanosec
         points.append(point)
-    out = MultiDOFJointTrajectory()
-    _set_stamp(out.header, stamp_ns)
-    out.header.frame_id = frame_id
-    out.joint_names = [joint_name]
-    out.points = points
-    return out
+    return _trajectory(MultiDOFJointTrajectory(), stamp_ns, frame_id, [joint_name], points)
 
 
 def _twists_of(points: Sequence[MultiDOFJointTrajectoryPoint], attr: str, j: int, n: int) -> FloatArray | None:

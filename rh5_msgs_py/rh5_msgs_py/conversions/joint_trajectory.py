@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import array
 import struct
-from collections.abc import Callable, Sequence
-from typing import Final, NamedTuple
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any, Final, NamedTuple, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -19,6 +19,9 @@ from ._common import NS_PER_S, FloatArray
 from .joint_names import _name_index, _unique_names
 from .joint_state import _read_doubles
 from .times import _STAMP, _check_increasing, _set_stamp, _times_to_ns, time_to_ns
+
+T = TypeVar("T")
+M = TypeVar("M")
 
 
 class JointTrajectoryArrays(NamedTuple):
@@ -75,20 +78,30 @@ def joint_trajectory_to_msg(
         )
     ]
     rows = [(attr, r) for attr, r in rows if r is not None]
-    secs, nanosecs = np.divmod(ns, NS_PER_S)
     points = []
-    for i, (sec, nanosec) in enumerate(zip(secs.tolist(), nanosecs.tolist(), strict=True)):
-        point = JointTrajectoryPoint()
+    for i, point in enumerate(_timed_points(JointTrajectoryPoint, ns)):
         for attr, data in rows:
             setattr(point, attr, array.array("d", data[i]))
+        points.append(point)
+    return _trajectory(JointTrajectory(), stamp_ns, frame_id, list(joint_names), points)
+
+
+def _timed_points(point_class: type[T], ns: NDArray[np.int64]) -> Iterator[T]:
+    """One new ``point_class`` per time in ``ns``, its ``time_from_start`` set: both trajectory builders' points."""
+    secs, nanosecs = np.divmod(ns, NS_PER_S)
+    for sec, nanosec in zip(secs.tolist(), nanosecs.tolist(), strict=True):
+        point = point_class()
         tfs = point.time_from_start
         tfs.sec = sec
         tfs.nanosec = nanosec
-        points.append(point)
-    out = JointTrajectory()
+        yield point
+
+
+def _trajectory(out: M, stamp_ns: int, frame_id: str, joint_names: list[str], points: list[Any]) -> M:
+    """``out`` with its header, joint names and points: how both trajectory builders finish."""
     _set_stamp(out.header, stamp_ns)
     out.header.frame_id = frame_id
-    out.joint_names = list(joint_names)
+    out.joint_names = joint_names
     out.points = points
     return out
 
