@@ -9,14 +9,15 @@
 * :mod:`.interpolation`, :mod:`.publishing`, :mod:`.plots`: 1 kHz samples, messages and figures of a plan;
 * :mod:`.planner_node`, :mod:`.plan_cli`, :mod:`.solve_worker`, :mod:`.sweep`: the node, ``rh5-plan`` and sweeps.
 
-Names resolve lazily (PEP 562): importing the package imports neither Crocoddyl nor pinocchio, so the node and the
-command line start fast and load the planner only when they plan.
+Names resolve lazily (PEP 562, :func:`rh5_msgs_py.lazy_exports.lazy_exports`): importing the package imports neither
+Crocoddyl nor pinocchio, so the node and the command line start fast and load the planner only when they plan.
 """
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from rh5_msgs_py.lazy_exports import lazy_exports
 
 if TYPE_CHECKING:
     from .cost_config import load_cost_config
@@ -58,11 +59,4 @@ __all__ = [
     "solve",
 ]
 
-
-def __getattr__(name: str) -> Any:
-    """Import the submodule that defines ``name`` on first use (PEP 562)."""
-    try:
-        module = _EXPORTS[name]
-    except KeyError:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
-    return getattr(importlib.import_module(f".{module}", __name__), name)
+__getattr__ = lazy_exports(__name__, _EXPORTS)
