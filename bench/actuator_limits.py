@@ -20,8 +20,8 @@ import crocoddyl  # noqa: F401  (before pinocchio, design/crocoddyl_wheels.md)
 from rh5_planner.actuator_constraints import LINEAR_ACTUATORS, check_trajectory
 from rh5_planner.limit_analysis import analyse
 from rh5_planner.motions import MOTIONS, get_motion
+from rh5_planner.ocp import PlanResult, SolverSettings, solve
 from rh5_planner.plots import plot_actuators
-from rh5_planner.problem import PlanResult, SolverSettings, solve
 
 DEFAULT = [n for n, m in MOTIONS.items() if m.actuator_limits]
 

@@ -10,7 +10,7 @@ Solves every motion twice (Box-FDDP, progress on stderr): with the paper's cost 
 the fast walk with the paper's own parameters, rh5_planner.motions.PAPER_SETTINGS: the paper's table reproduced)
 and with the actuator limits (Table I stroke, velocity, force through the parallel
 mechanisms; issue 14). Prints both feasibility tables (Markdown, our actuator-space columns beside the paper's
-three), compares the paper's columns cell by cell (rh5_planner.limit_analysis.PAPER_FEASIBILITY), then runs the
+three), compares the paper's columns cell by cell (rh5_planner.feasibility.PAPER_FEASIBILITY), then runs the
 heuristic (default: in actuator space, i.e. planned with the actuator limits and required to hold them; scaling
 the limits the nominal solution violates) and prints its steps and the result both as the paper's joint-space
 factor and as an actuator specification (``Knee actuator ... 140 -> 420 mm/s``). ``--design-space joint`` runs the
@@ -28,10 +28,12 @@ from pathlib import Path
 import crocoddyl  # noqa: F401  (before pinocchio, design/crocoddyl_wheels.md)
 
 from rh5_planner.design import improve_design, jump_height_task, parse_limit
-from rh5_planner.limit_analysis import ACTUATOR_KINDS, JOINT_KINDS, FeasibilityTable, LimitAnalysis, analyse
+from rh5_planner.feasibility import FeasibilityTable
+from rh5_planner.limit_analysis import LimitAnalysis, analyse
+from rh5_planner.limit_scale import ACTUATOR_KINDS, JOINT_KINDS
 from rh5_planner.motions import MOTIONS, PAPER_SETTINGS, get_motion
+from rh5_planner.ocp import SolverSettings, solve
 from rh5_planner.plan_cli import PAPER_MOTIONS, ProgressBar
-from rh5_planner.problem import SolverSettings, solve
 
 
 def main() -> None:

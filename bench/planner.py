@@ -37,8 +37,9 @@ import numpy as np
 
 from rh5_planner.actuator_bounds import ACTUATOR_LIMIT_KINDS
 from rh5_planner.actuator_constraints import check_trajectory
+from rh5_planner.cost_config import load_cost_config
 from rh5_planner.motions import MOTIONS, get_motion
-from rh5_planner.problem import CONTACT_STABILITY_FORMS, PlanResult, SolverSettings, load_cost_config, solve
+from rh5_planner.ocp import CONTACT_STABILITY_FORMS, PlanResult, SolverSettings, solve
 
 TALOS_KNOTS = 55
 """Knots of the reference walk (dt 0.03 s, 25 knots per step, 2 per double support)."""

@@ -24,13 +24,13 @@ from rh5_bringup.analysis.figures import replay_figure
 from rh5_bringup.analysis.metrics import BASE_BAND_M
 from rh5_bringup.sim.replay import CONTROLLERS, replay
 from rh5_msgs_py.trajectory_file import TrajectoryData, load_trajectory
-from rh5_planner.limit_analysis import FOOT_SIZE_M
+from rh5_planner.feet import FOOT_SIZE_M
 
 
 def plan_walk() -> TrajectoryData:
     """Plan the 5 kg walk with the default settings (as `rh5 experiment` does)."""
     from rh5_planner.motions import get_motion  # noqa: PLC0415 - only when no trajectory file is given
-    from rh5_planner.problem import solve  # noqa: PLC0415
+    from rh5_planner.ocp import solve  # noqa: PLC0415
 
     started = time.perf_counter()
     result = solve(get_motion("walk_with_5kg_weights"))
@@ -44,7 +44,7 @@ def plan_walk() -> TrajectoryData:
 
 def constraint_margins(data: TrajectoryData) -> str:
     """How much of the plan's contact time sits at the CoP region's edge, and the largest friction use."""
-    from rh5_planner.problem import load_cost_config  # noqa: PLC0415 - the planner's cone settings
+    from rh5_planner.cost_config import load_cost_config  # noqa: PLC0415 - the planner's cone settings
 
     cone = load_cost_config()["contact_stability"]
     mu, region = float(cone["mu"]), float(cone["cop_fraction"])

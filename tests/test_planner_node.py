@@ -15,7 +15,7 @@ from rh5_bringup.orchestration.launcher import Bringup, NodeSpec, SuiteRun, wait
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import joint_trajectory_from_msg, status_from_msg, wrench_from_msg
 from rh5_msgs_py.names import JOINT_NAMES
-from rh5_planner.problem import load_cost_config
+from rh5_planner.cost_config import load_cost_config
 
 STAGES = len(load_cost_config()["continuation"]) + 1
 """Box-FDDP solves per plan: the continuation stages of costs.yaml, then the problem as configured."""

@@ -9,7 +9,7 @@ import pytest
 from rh5_bringup.sim.replay import replay
 from rh5_msgs_py.trajectory_file import TrajectoryData
 from rh5_planner.motions import get_motion
-from rh5_planner.problem import solve
+from rh5_planner.ocp import solve
 
 
 @pytest.fixture(scope="module")

@@ -4,7 +4,7 @@
                                            [--output docs/rh5_walk_first_pose.png]
 
 The pose is the first knot of a trajectory file when one is given, else the walk's initial pose as the planner
-builds it (rh5_planner.problem.nominal_configuration with the walk's knee bend). Two views side by side: front
+builds it (rh5_planner.ocp.nominal_configuration with the walk's knee bend). Two views side by side: front
 three-quarter (the robot's left in red, right in blue) and its right side.
 """
 
@@ -31,7 +31,7 @@ def first_pose(trajectory: Path | None) -> tuple[np.ndarray, np.ndarray, np.ndar
         return data.base_positions()[0], data.base_quaternions_xyzw()[0], data.joint_positions()[0]
     from rh5_hyrodyn_mapper.model import build_model, q_index  # noqa: PLC0415
     from rh5_planner.motions import get_motion  # noqa: PLC0415
-    from rh5_planner.problem import nominal_configuration  # noqa: PLC0415
+    from rh5_planner.ocp import nominal_configuration  # noqa: PLC0415
 
     model = build_model()
     q = nominal_configuration(model, get_motion("walk_with_5kg_weights").knee_bend_rad)

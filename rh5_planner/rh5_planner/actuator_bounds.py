@@ -9,7 +9,7 @@ actuator force f = J(y)^-T tau. Its limits
 become boxes on the joint position, velocity and torque of every knot, built at the configuration of the
 current iterate (q_bar, v_bar, tau_bar) so that Crocoddyl evaluates them in C++ (the joint-limit
 ``ResidualModelState`` with its ``ActivationModelQuadraticBarrier``, and Box-FDDP's control box); the problem
-builder refreshes them between continuation stages (:mod:`rh5_planner.problem`):
+builder refreshes them between continuation stages (:mod:`rh5_planner.ocp`):
 
 * 1-DoF units (Hip3, knees): exact. The stroke is a fixed joint interval (l is monotonic over the joint range;
   found on a fine grid), the velocity bound is v_max / |J(q_bar)| and the torque bound f_max |J(q_bar)|.

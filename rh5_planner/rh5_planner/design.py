@@ -18,22 +18,14 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Final
 
+import crocoddyl  # noqa: F401  (before pinocchio, design/crocoddyl_wheels.md)
 import numpy as np
 
-from . import problem
 from .actuator_bounds import parallel_units
-from .limit_analysis import (
-    ACTUATOR_KINDS,
-    JOINT_KINDS,
-    LimitAnalysis,
-    LimitScale,
-    analyse,
-    match_joints,
-    side_free_name,
-    solver_log_of,
-)
+from .limit_analysis import LimitAnalysis, analyse, solver_log_of
+from .limit_scale import ACTUATOR_KINDS, JOINT_KINDS, LimitScale, match_joints, side_free_name
 from .motions import MotionSpec
-from .problem import PlanResult, SolverSettings
+from .ocp import PlanResult, SolverSettings, solve
 
 __all__ = [
     "DEFAULT_FACTORS",
@@ -77,8 +69,8 @@ def parse_limit(text: str) -> tuple[str, str]:
 
 def solve_with_limits(motion: MotionSpec, scale: LimitScale, settings: SolverSettings) -> PlanResult:
     """Plan ``motion`` with the joint limits scaled by ``scale`` (joint-limit barrier and Box-FDDP torque box follow
-    them; problem.solve's ``limit_scale``). The one place the heuristic reaches the planner."""
-    return problem.solve(motion, settings, limit_scale=scale if scale else None)
+    them; :func:`rh5_planner.ocp.solve`'s ``limit_scale``). The one place the heuristic reaches the planner."""
+    return solve(motion, settings, limit_scale=scale if scale else None)
 
 
 # --------------------------------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""The sole's support rectangle: one number shared by the optimiser's CoP cost (problem) and the CoP checks of the
+"""The sole's support rectangle: one number shared by the optimiser's CoP cost (ocp.costs) and the CoP checks of the
 limit analysis and the plots."""
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """1 kHz interpolation of a planned trajectory (the paper: "interpolated to 1 kHz using cubic splines").
 
-Works on a :class:`rh5_msgs_py.trajectory_file.TrajectoryData` (a :class:`rh5_planner.problem.PlanResult`
+Works on a :class:`rh5_msgs_py.trajectory_file.TrajectoryData` (a :class:`rh5_planner.ocp.PlanResult`
 converts with ``to_trajectory_data()``):
 
 * Joints and base position: cubic Hermite splines through the knot positions (C1), with Euler-consistent

@@ -1,8 +1,8 @@
-"""Limit analysis of a planned motion and the feasibility table of the paper ("Capabilities of the RH5 humanoid to
-perform a wide range of motions respecting the hardware limits", tab:systemLimits).
+"""Limit analysis of a planned motion: how close it comes to every joint, actuator and contact limit, and where it
+exceeds one.
 
 For one trajectory (a :class:`~rh5_msgs_py.trajectory_file.TrajectoryData` or a
-:class:`~rh5_planner.problem.PlanResult`) :func:`analyse` computes, per joint, the utilisation (peak |value| /
+:class:`~rh5_planner.ocp.PlanResult`) :func:`analyse` computes, per joint, the utilisation (peak |value| /
 limit; for positions the distance from the middle of the range over its half-width, 1 at either end) and the
 number of knots over the limit of
 
@@ -16,19 +16,16 @@ and the contact stability: the fraction of contact knots whose CoP lies in the a
 ``cop_fraction`` of the 200 x 80 mm sole) and whose contact force lies in the friction cone (costs.yaml ``mu``,
 |f_t| <= mu f_z with f_z > 0).
 
-:class:`FeasibilityTable` puts analyses in the paper's form (a tick where every limit holds, else the number of
-joints, or actuators, violating it; for CoP and friction the number of foot-knots outside), prints it as text or
-Markdown and compares it with :data:`PAPER_FEASIBILITY`. :class:`LimitScale` describes scaled limits (the
-design-improvement heuristic of :mod:`rh5_planner.design` checks a solution against the limits it was planned with).
+The paper's table of such analyses is :mod:`rh5_planner.feasibility`; the scaled limits a solution is checked against
+(the design-improvement heuristic of :mod:`rh5_planner.design` checks it against the limits it was planned with) are
+:class:`rh5_planner.limit_scale.LimitScale`.
 """
 
 from __future__ import annotations
 
-import fnmatch
-import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Final, Protocol
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -36,31 +33,22 @@ import numpy.typing as npt
 from rh5_hyrodyn_mapper.kinematics.base import KinematicsError
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_hyrodyn_mapper.model import JointLimits, joint_limits
-from rh5_msgs_py.names import ACTUATOR_INDEX, JOINT_GROUPS, JOINT_INDEX, JOINT_NAMES, SUBMECHANISMS
+from rh5_msgs_py.names import ACTUATOR_INDEX, JOINT_NAMES
 from rh5_msgs_py.trajectory_file import TrajectoryData
 
 from .cost_config import load_cost_config
+from .feasibility import COLUMNS, FeasibilityTable
 from .feet import FOOT_SIZE_M
+from .limit_scale import ACTUATOR_KINDS, JOINT_KINDS, MAPPED_ACTUATORS, LimitScale
 from .solver_log import SolverLog
 
 __all__ = [
-    "ACTUATOR_KINDS",
-    "COLUMNS",
-    "FOOT_SIZE_M",
-    "JOINT_KINDS",
-    "MAPPED_ACTUATORS",
-    "PAPER_FEASIBILITY",
-    "Comparison",
     "ContactCheck",
-    "FeasibilityTable",
     "LimitAnalysis",
-    "LimitScale",
     "LimitUsage",
     "PlannedResult",
     "analyse",
     "contact_check",
-    "match_joints",
-    "side_free_name",
     "solver_log_of",
 ]
 
@@ -69,8 +57,8 @@ IntArray = npt.NDArray[np.int64]
 
 
 class PlannedResult(Protocol):
-    """What the analysis reads of a planner result (:class:`rh5_planner.problem.PlanResult`): its trajectory and
-    its solver log. A protocol, so that this module does not import the problem that imports it."""
+    """What the analysis reads of a planner result (:class:`rh5_planner.ocp.PlanResult`): its trajectory and
+    its solver log. A protocol, so that this module does not import the planner that imports it."""
 
     @property
     def solver_log(self) -> SolverLog:
@@ -80,140 +68,6 @@ class PlannedResult(Protocol):
     def to_trajectory_data(self) -> TrajectoryData:
         """The trajectory file content of the plan."""
         ...
-
-
-JOINT_KINDS: Final = ("position", "velocity", "torque")
-"""Joint-space limit kinds; also the kinds :class:`LimitScale` scales."""
-ACTUATOR_KINDS: Final = ("stroke", "actuator_velocity", "force")
-"""Actuator-space limit kinds, checked through the mapper."""
-_ACTUATOR_OF_JOINT_KIND: Final = {"position": "stroke", "velocity": "actuator_velocity", "torque": "force"}
-COLUMNS: Final = ("position", "torque", "velocity", *ACTUATOR_KINDS, "cop", "friction")
-"""Columns of the feasibility table: the paper's three (its order: position, torque, velocity), ours after."""
-COLUMN_TITLES: Final = {
-    "position": "Pos. Lim.",
-    "torque": "Torque Lim.",
-    "velocity": "Vel. Lim.",
-    "stroke": "Act. stroke",
-    "actuator_velocity": "Act. vel.",
-    "force": "Act. force",
-    "cop": "CoP",
-    "friction": "Friction",
-}
-MAPPED_ACTUATORS: Final[tuple[str, ...]] = tuple(a for s in SUBMECHANISMS if s.kind != "serial" for a in s.actuators)
-"""Actuators of the parallel mechanisms and the head transmission: the ones with limits of their own."""
-_MAPPED_JOINTS: Final[dict[str, tuple[str, ...]]] = {
-    a: s.joints for s in SUBMECHANISMS if s.kind != "serial" for a in s.actuators
-}
-
-PAPER_FEASIBILITY: Final[dict[str, dict[str, int]]] = {
-    "walk_with_5kg_weights": {"position": 0, "torque": 0, "velocity": 0},
-    "fast_walk_1m_s": {"position": 0, "torque": 0, "velocity": 0},
-    "squat_with_5kg_weights": {"position": 0, "torque": 0, "velocity": 0},
-    "vertical_jump_1cm": {"position": 0, "torque": 0, "velocity": 0},
-    "vertical_jump_10cm": {"position": 0, "torque": 0, "velocity": 3},
-    "obstacle_jumps": {"position": 0, "torque": 5, "velocity": 7},
-}
-"""The paper's table tab:systemLimits (Esser et al., RH5 paper; rh5_paper_facts.yaml ``feasibility``): 0 is a tick,
-n > 0 the number of violations it reports. The text says the 10 cm jump exceeds the body pitch and knee velocity
-limits (3 = BodyPitch and both knees): the counts are joints."""
-_TICK: Final = "\u2713"
-_CROSS: Final = "\u2717"
-
-
-def side_free_name(joint: str) -> str:
-    """The joint name without its side letter (``LLKnee`` -> ``Knee``, ``ARElbow`` -> ``Elbow``): one name for a
-    symmetric pair, used to group plots and limit patterns."""
-    for group in ("left_leg", "right_leg", "left_arm", "right_arm"):
-        if joint in JOINT_GROUPS[group]:
-            return joint[2:]
-    return joint
-
-
-# --------------------------------------------------------------------------------------------------
-# scaled limits
-
-
-@dataclass(frozen=True)
-class LimitScale:
-    """Factors on joint limits: ``entries`` are (pattern, kind, factor); kind is one of :data:`JOINT_KINDS`.
-
-    A pattern matches joint names case-insensitively, as a shell pattern (``LL*``) or, without wildcards, as a
-    substring (``knee`` matches LLKnee and LRKnee). Where several entries match a joint and kind, the last wins.
-    Position factors widen the range about its middle. In actuator space a factor applies to the matching limit
-    kind (stroke, velocity, force) of every actuator of the joint's mechanism: a faster knee is a faster knee
-    actuator.
-    """
-
-    entries: tuple[tuple[str, str, float], ...] = ()
-
-    def __post_init__(self) -> None:
-        clean = []
-        for pattern, kind, factor in self.entries:
-            if kind not in JOINT_KINDS:
-                msg = f"unknown limit kind {kind!r}; known: {list(JOINT_KINDS)}"
-                raise ValueError(msg)
-            if not (isinstance(factor, int | float) and math.isfinite(factor) and factor > 0):
-                msg = f"limit factor must be a positive number, got {factor!r}"
-                raise ValueError(msg)
-            if not match_joints(pattern):
-                msg = f"pattern {pattern!r} matches no joint; joints: {list(JOINT_NAMES)}"
-                raise ValueError(msg)
-            clean.append((str(pattern), str(kind), float(factor)))
-        object.__setattr__(self, "entries", tuple(clean))
-
-    @classmethod
-    def uniform(cls, limits: Iterable[tuple[str, str]], factor: float) -> LimitScale:
-        """Every (pattern, kind) of ``limits`` scaled by ``factor``."""
-        return cls(tuple((pattern, kind, factor) for pattern, kind in limits))
-
-    def factors(self, kind: str) -> FloatArray:
-        """(32,) factor of every joint (JOINT_NAMES order) for ``kind``."""
-        out = np.ones(len(JOINT_NAMES))
-        for pattern, entry_kind, factor in self.entries:
-            if entry_kind == kind:
-                out[[JOINT_INDEX[j] for j in match_joints(pattern)]] = factor
-        return out
-
-    def actuator_factors(self, kind: str) -> FloatArray:
-        """(len(MAPPED_ACTUATORS),) factor per mapped actuator for actuator kind ``kind`` (largest of its joints)."""
-        joint_kind = {v: k for k, v in _ACTUATOR_OF_JOINT_KIND.items()}[kind]
-        joint_factors = self.factors(joint_kind)
-        return np.array([max(joint_factors[JOINT_INDEX[j]] for j in _MAPPED_JOINTS[a]) for a in MAPPED_ACTUATORS])
-
-    def describe(self) -> str:
-        """Human-readable: ``knee velocity x3 (LLKnee, LRKnee)``; ``nominal limits`` when empty."""
-        if not self.entries:
-            return "nominal limits"
-        return "; ".join(
-            f"{pattern} {kind} x{factor:g} ({', '.join(match_joints(pattern))})"
-            for pattern, kind, factor in self.entries
-        )
-
-    def to_json(self) -> list[list[Any]]:
-        """JSON-able form (solver logs, reports)."""
-        return [list(entry) for entry in self.entries]
-
-    def __bool__(self) -> bool:
-        """Whether any limit is scaled by a factor other than 1."""
-        return any(factor != 1.0 for _, _, factor in self.entries)
-
-
-def match_joints(pattern: str) -> tuple[str, ...]:
-    """Joint names matching ``pattern`` (see :class:`LimitScale`), in JOINT_NAMES order."""
-    p = pattern.lower()
-    glob = p if any(c in p for c in "*?[") else f"*{p}*"
-    return tuple(j for j in JOINT_NAMES if fnmatch.fnmatchcase(j.lower(), glob))
-
-
-def _scaled_joint_limits(limits: JointLimits, scale: LimitScale) -> dict[str, tuple[FloatArray, FloatArray]]:
-    """Per joint kind, (middle, half-width) of the allowed interval after scaling (symmetric kinds: middle 0)."""
-    lo, hi = np.asarray(limits.position_lower), np.asarray(limits.position_upper)
-    zero = np.zeros(len(JOINT_NAMES))
-    return {
-        "position": (0.5 * (lo + hi), 0.5 * (hi - lo) * scale.factors("position")),
-        "velocity": (zero, np.asarray(limits.velocity_max) * scale.factors("velocity")),
-        "torque": (zero, np.asarray(limits.torque_max) * scale.factors("torque")),
-    }
 
 
 # --------------------------------------------------------------------------------------------------
@@ -362,6 +216,17 @@ def _cell(usage: LimitUsage, i: int) -> str:
 # analysis
 
 
+def _scaled_joint_limits(limits: JointLimits, scale: LimitScale) -> dict[str, tuple[FloatArray, FloatArray]]:
+    """Per joint kind, (middle, half-width) of the allowed interval after scaling (symmetric kinds: middle 0)."""
+    lo, hi = np.asarray(limits.position_lower), np.asarray(limits.position_upper)
+    zero = np.zeros(len(JOINT_NAMES))
+    return {
+        "position": (0.5 * (lo + hi), 0.5 * (hi - lo) * scale.factors("position")),
+        "velocity": (zero, np.asarray(limits.velocity_max) * scale.factors("velocity")),
+        "torque": (zero, np.asarray(limits.torque_max) * scale.factors("torque")),
+    }
+
+
 def solver_log_of(source: TrajectoryData | PlannedResult) -> SolverLog | None:
     """The solver log of a plan or of a trajectory file (None: a file without one)."""
     if isinstance(source, TrajectoryData):
@@ -472,118 +337,3 @@ def _actuator_usage(
         for kind in ACTUATOR_KINDS
     }
     return out, ""
-
-
-# --------------------------------------------------------------------------------------------------
-# the feasibility table
-
-
-@dataclass(frozen=True)
-class Comparison:
-    """One cell of the paper's table against ours."""
-
-    motion: str
-    column: str
-    paper: int
-    ours: int | None
-
-    @property
-    def agree(self) -> bool:
-        """Same entry (tick and tick, or the same number of violating joints)."""
-        return self.ours == self.paper
-
-    @property
-    def same_verdict(self) -> bool:
-        """Both feasible or both infeasible for this limit (counts may differ)."""
-        return self.ours is not None and (self.ours == 0) == (self.paper == 0)
-
-    def describe(self) -> str:
-        """``vertical_jump_10cm / Vel. Lim.: paper ✗3, ours ✗2: disagree (both violate)``."""
-        if self.agree:
-            verdict = "agree"
-        elif self.same_verdict:
-            verdict = "disagree (both violate, other count)"
-        else:
-            verdict = "DISAGREE"
-        return (
-            f"{self.motion} / {COLUMN_TITLES[self.column]}: paper {_entry(self.paper)}, ours {_entry(self.ours)}: "
-            f"{verdict}"
-        )
-
-
-def _entry(count: int | None) -> str:
-    if count is None:
-        return "n/a"
-    return _TICK if count == 0 else f"{_CROSS}{count}"
-
-
-@dataclass(frozen=True, eq=False)
-class FeasibilityTable:
-    """Analyses of several motions in the paper's table form (rows: motions, columns: :data:`COLUMNS`)."""
-
-    analyses: Sequence[LimitAnalysis]
-    columns: tuple[str, ...] = COLUMNS
-
-    def rows(self) -> list[tuple[str, list[str]]]:
-        """(motion, cells) with ticks, crosses and counts."""
-        return [(a.motion, [_entry(a.count(c)) for c in self.columns]) for a in self.analyses]
-
-    def _header(self) -> list[str]:
-        return ["Motion", "Conv.", *(COLUMN_TITLES[c] for c in self.columns)]
-
-    def _body(self) -> list[list[str]]:
-        out = []
-        for a, (motion, cells) in zip(self.analyses, self.rows(), strict=True):
-            conv = {True: "yes", False: "NO", None: "?"}[a.converged]
-            label = motion + (" +act" if a.actuator_limited else "") + (f" [{a.scale.describe()}]" if a.scale else "")
-            out.append([label, conv, *cells])
-        return out
-
-    def to_markdown(self) -> str:
-        """GitHub Markdown table."""
-        header = self._header()
-        lines = ["| " + " | ".join(header) + " |", "|" + "|".join(["---", *[":-:"] * (len(header) - 1)]) + "|"]
-        lines += ["| " + " | ".join(row) + " |" for row in self._body()]
-        return "\n".join(lines) + "\n\n" + _LEGEND
-
-    def to_text(self) -> str:
-        """Plain text with aligned columns."""
-        rows = [self._header(), *self._body()]
-        widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-        lines = [
-            "  ".join(
-                cell.ljust(w) if i == 0 else cell.center(w) for i, (cell, w) in enumerate(zip(row, widths, strict=True))
-            ).rstrip()
-            for row in rows
-        ]
-        lines.insert(1, "-" * len(lines[0]))
-        return "\n".join(lines) + "\n" + _LEGEND
-
-    def compare_with_paper(self) -> list[Comparison]:
-        """Every cell the paper has (motions of :data:`PAPER_FEASIBILITY` present here, its three columns)."""
-        out = []
-        for a in self.analyses:
-            paper = PAPER_FEASIBILITY.get(a.motion)
-            if paper is None:
-                continue
-            out.extend(Comparison(a.motion, c, paper[c], a.count(c)) for c in ("position", "torque", "velocity"))
-        return out
-
-    def comparison_text(self) -> str:
-        """The paper's table next to ours, one line per cell, and the agreement count."""
-        comparisons = self.compare_with_paper()
-        if not comparisons:
-            return "No motion of the paper's table (tab:systemLimits) in this table.\n"
-        agree = sum(c.agree for c in comparisons)
-        verdict = sum(c.same_verdict for c in comparisons)
-        lines = ["Comparison with the paper's table (tab:systemLimits):"]
-        lines += [f"  {c.describe()}" for c in comparisons]
-        lines.append(f"{agree}/{len(comparisons)} cells agree; {verdict}/{len(comparisons)} give the same verdict.")
-        return "\n".join(lines) + "\n"
-
-
-_LEGEND: Final = (
-    f"{_TICK}: the limit holds at every knot; {_CROSS}n: n joints (Pos./Torque/Vel., joint space) or n actuators "
-    "(Act. *, parallel mechanisms and head) exceed it; CoP/Friction: foot-knots in contact outside the allowed "
-    "region; n/a: mapping to actuator space failed; +act: planned with the actuator limits in the problem.\n"
-)

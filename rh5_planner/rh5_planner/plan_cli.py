@@ -32,7 +32,7 @@ from .motions import MOTIONS, VERIFIED_MOTIONS, MotionError, MotionSpec, get_mot
 
 if TYPE_CHECKING:
     from .limit_analysis import LimitAnalysis
-    from .problem import PlanResult, SolverSettings
+    from .ocp import PlanResult, SolverSettings
     from .solver_log import ActuatorLimitLog
 
 __all__ = ["ProgressBar", "main", "parse_overrides"]
@@ -140,7 +140,7 @@ def _motion(name: str, overrides: dict[str, Any]) -> MotionSpec:
 
 
 def _settings(args: argparse.Namespace, callback: Any) -> SolverSettings:
-    from .problem import SolverSettings  # noqa: PLC0415  (Crocoddyl only when planning)
+    from .ocp import SolverSettings  # noqa: PLC0415  (Crocoddyl only when planning)
 
     return SolverSettings(
         max_iterations=args.max_iterations,
@@ -151,7 +151,7 @@ def _settings(args: argparse.Namespace, callback: Any) -> SolverSettings:
 
 
 def _solve(motion: MotionSpec, args: argparse.Namespace, stream: IO[str]) -> PlanResult:
-    from .problem import solve  # noqa: PLC0415
+    from .ocp import solve  # noqa: PLC0415
 
     bar = ProgressBar(args.max_iterations, args.stop_threshold, label=f"{motion.name} ", stream=stream)
     stream.write(f"{motion.name}: building and solving ({motion.n_knots} knot intervals)...\n")
@@ -162,7 +162,7 @@ def _solve(motion: MotionSpec, args: argparse.Namespace, stream: IO[str]) -> Pla
 
 
 def _summary(result: PlanResult, analysis: LimitAnalysis, files: Sequence[Path]) -> str:
-    from .limit_analysis import FeasibilityTable  # noqa: PLC0415
+    from .feasibility import FeasibilityTable  # noqa: PLC0415
 
     log = result.solver_log
     lines = [
@@ -203,8 +203,8 @@ def _actuator_line(entry: ActuatorLimitLog) -> str:
 
 
 def _plan(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
+    from .cost_config import load_cost_config  # noqa: PLC0415
     from .limit_analysis import analyse  # noqa: PLC0415
-    from .problem import load_cost_config  # noqa: PLC0415
 
     motion = _motion(args.motion, parse_overrides(args.set))
     output_dir = Path(args.output_dir)
@@ -239,7 +239,8 @@ def _list(out: IO[str]) -> int:
 
 
 def _table(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
-    from .limit_analysis import FeasibilityTable, analyse  # noqa: PLC0415
+    from .feasibility import FeasibilityTable  # noqa: PLC0415
+    from .limit_analysis import analyse  # noqa: PLC0415
 
     names = args.table or list(PAPER_MOTIONS)
     overrides = parse_overrides(args.set)
@@ -283,7 +284,7 @@ def _design(args: argparse.Namespace, out: IO[str], err: IO[str]) -> int:
         bar.finish(step.describe())
         bar.restart()
 
-    from .limit_analysis import ACTUATOR_KINDS, JOINT_KINDS  # noqa: PLC0415
+    from .limit_scale import ACTUATOR_KINDS, JOINT_KINDS  # noqa: PLC0415
 
     # planned with the actuator limits (--set actuator_limits=true): a feasible scaling must hold them too, and is
     # reported as an actuator specification beside the joint-space factor

@@ -22,7 +22,7 @@ executor keeps answering ``~/load``, the parameter services and further ``~/plan
 child ignores SIGINT (the node stops it when it is destroyed) and exits if the node dies.
 
 At start the node publishes the first pose of the selected motion (the nominal standing pose with the
-motion's knee bend and payload, :func:`rh5_planner.problem.build_robot`, ~0.4 s) as a two-sample hold
+motion's knee bend and payload, :func:`rh5_planner.ocp.build_robot`, ~0.4 s) as a two-sample hold
 trajectory, so that the rest of the suite has a reference; all zeros if that pose cannot be computed.
 """
 
@@ -111,7 +111,7 @@ def standing_pose(motion: MotionSpec) -> tuple[np.ndarray, np.ndarray]:
     """Joints (JOINT_NAMES order) and base pose (xyz, quaternion xyzw) of ``motion``'s initial state."""
     from rh5_hyrodyn_mapper.model import q_index  # noqa: PLC0415
 
-    from .problem import build_robot  # noqa: PLC0415  (imports Crocoddyl: only when needed)
+    from .ocp import build_robot  # noqa: PLC0415  (imports Crocoddyl: only when needed)
 
     robot = build_robot(motion.payload_kg_per_hand, motion.knee_bend_rad)
     q = robot.x0[: robot.model.nq]

@@ -31,7 +31,7 @@ from rh5_msgs_py.names import ACTUATOR_INDEX, JOINT_GROUPS, JOINT_INDEX, SUBMECH
 from rh5_msgs_py.trajectory_file import NQ, TrajectoryData
 
 from .feet import FOOT_SIZE_M
-from .limit_analysis import JOINT_KINDS, LimitScale, side_free_name
+from .limit_scale import JOINT_KINDS, LimitScale, side_free_name
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

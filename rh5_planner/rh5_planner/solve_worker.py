@@ -33,7 +33,7 @@ def run(job: dict[str, Any]) -> int:
         import crocoddyl  # noqa: F401, PLC0415  (before pinocchio: ../shared/design/crocoddyl_wheels.md)
 
         from rh5_planner.motions import get_motion  # noqa: PLC0415
-        from rh5_planner.problem import SolverSettings, solve  # noqa: PLC0415
+        from rh5_planner.ocp import SolverSettings, solve  # noqa: PLC0415
 
         def progress(iteration: int, cost: float, stop: float) -> None:
             if os.getppid() != parent:

@@ -97,7 +97,7 @@ class ActuatorLimitLog:
 
 @dataclass(frozen=True)
 class SolverLog:
-    """What one solve did (:func:`rh5_planner.problem.solve`), field for field the keys of the stored log."""
+    """What one solve did (:func:`rh5_planner.ocp.solve`), field for field the keys of the stored log."""
 
     solver: str = "BoxFDDP"
     iterations: int = 0

@@ -16,8 +16,9 @@ from rh5_hyrodyn_mapper.model import joint_limits
 from rh5_msgs_py.names import JOINT_INDEX, JOINT_NAMES
 from rh5_planner.actuator_bounds import ActuatorBounds, JointBoxes, parallel_units
 from rh5_planner.actuator_constraints import LINEAR_ACTUATORS, actuator_usage
+from rh5_planner.cost_config import load_cost_config
 from rh5_planner.motions import get_motion
-from rh5_planner.problem import build_problem, load_cost_config
+from rh5_planner.ocp import build_problem
 
 # share_floor 0: the 2-DoF boxes take the shape of the sample itself (inside once the row sums allow it)
 EXACT = {"stroke_beta": 1.0, "velocity_beta": 1.0, "force_beta": 1.0, "stroke_activation": 0.0, "share_floor": 0.0}

@@ -19,20 +19,14 @@ from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_hyrodyn_mapper.model import joint_limits, model_hash, v_index
 from rh5_msgs_py.names import ACTUATOR_INDEX, JOINT_INDEX, JOINT_NAMES
 from rh5_msgs_py.trajectory_file import NQ, TrajectoryData
-from rh5_planner import design, problem
+from rh5_planner import design, ocp
 from rh5_planner.design import critical_limits, improve_design, parse_limit
-from rh5_planner.limit_analysis import (
-    MAPPED_ACTUATORS,
-    PAPER_FEASIBILITY,
-    FeasibilityTable,
-    LimitScale,
-    analyse,
-    match_joints,
-    side_free_name,
-)
+from rh5_planner.feasibility import PAPER_FEASIBILITY, FeasibilityTable
+from rh5_planner.limit_analysis import analyse
+from rh5_planner.limit_scale import MAPPED_ACTUATORS, LimitScale, match_joints, side_free_name
 from rh5_planner.motions import MotionSpec, get_motion
+from rh5_planner.ocp import PlanResult, SolverSettings, solve
 from rh5_planner.plots import configuration_limits, plot_cop, plot_joints
-from rh5_planner.problem import PlanResult, SolverSettings, solve
 
 LIMITS = joint_limits()
 N = 12
@@ -332,8 +326,8 @@ def test_scaled_limits_reach_the_built_problem() -> None:
     with the same factor)."""
     scale = LimitScale((("knee", "velocity", 3.0), ("BodyPitch", "torque", 2.0), ("knee", "position", 2.0)))
     motion = get_motion("squat_with_5kg_weights", {**SHORT_SQUAT, "actuator_limits": False})
-    nominal = problem.build_problem(motion)
-    scaled = problem.build_problem(motion, limit_scale=scale)
+    nominal = ocp.build_problem(motion)
+    scaled = ocp.build_problem(motion, limit_scale=scale)
     vi = v_index(nominal.robot.model) - 6
     body = vi[JOINT_INDEX["BodyPitch"]]
     knees = vi[[JOINT_INDEX["LLKnee"], JOINT_INDEX["LRKnee"]]]
@@ -346,8 +340,8 @@ def test_scaled_limits_reach_the_built_problem() -> None:
     np.testing.assert_allclose(scaled.robot.q_upper - mid, factor * (nominal.robot.q_upper - mid))
     # actuator limits: the torso's force bound (a "torque" factor) doubles, below the doubled joint torque limit
     with_actuators = get_motion("squat_with_5kg_weights", SHORT_SQUAT)
-    box = problem.build_problem(with_actuators).problem.runningModels[0].u_ub[body]
-    scaled_box = problem.build_problem(with_actuators, limit_scale=scale).problem.runningModels[0].u_ub[body]
+    box = ocp.build_problem(with_actuators).problem.runningModels[0].u_ub[body]
+    scaled_box = ocp.build_problem(with_actuators, limit_scale=scale).problem.runningModels[0].u_ub[body]
     assert box < tmax("BodyPitch")
     assert scaled_box == pytest.approx(2 * box)
 

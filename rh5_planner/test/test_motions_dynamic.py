@@ -14,17 +14,11 @@ import pytest
 
 from rh5_msgs_py.names import JOINT_NAMES
 from rh5_planner.actuator_constraints import check_trajectory
+from rh5_planner.cost_config import load_cost_config, motion_config
+from rh5_planner.feet import FOOT_SIZE_M
+from rh5_planner.limit_scale import limit_factors
 from rh5_planner.motions import VERIFIED_MOTIONS, get_motion
-from rh5_planner.problem import (
-    FOOT_SIZE_M,
-    PlanResult,
-    SolverSettings,
-    build_robot,
-    limit_factors,
-    load_cost_config,
-    motion_config,
-    solve,
-)
+from rh5_planner.ocp import PlanResult, SolverSettings, build_robot, solve
 
 CONFIG = load_cost_config()
 MU = CONFIG["contact_stability"]["mu"]
@@ -218,7 +212,7 @@ def test_limit_scale_scales_the_planning_limits() -> None:
     assert np.count_nonzero(np.isclose(width, 1.5)) == 1
     np.testing.assert_allclose(scaled.q_upper + scaled.q_lower, nominal.q_upper + nominal.q_lower)
 
-    class Factors:  # the LimitFactors protocol (what rh5_planner.limit_analysis.LimitScale provides)
+    class Factors:  # the LimitFactors protocol (what rh5_planner.limit_scale.LimitScale provides)
         def factors(self, kind: str) -> np.ndarray:
             out = np.ones(len(JOINT_NAMES))
             if kind == "velocity":

@@ -23,17 +23,11 @@ from rh5_hyrodyn_mapper.model import model_hash, q_index, v_index
 from rh5_msgs_py.names import FOOT_FRAMES
 from rh5_msgs_py.trajectory_file import NQ, load_trajectory
 from rh5_planner.actuator_constraints import check_trajectory
+from rh5_planner.cost_config import load_cost_config
+from rh5_planner.feet import FOOT_SIZE_M
 from rh5_planner.interpolation import euler_tangents, interpolate
 from rh5_planner.motions import MOTIONS, PAPER_SETTINGS, MotionError, get_motion
-from rh5_planner.problem import (
-    FOOT_SIZE_M,
-    PlanResult,
-    SolverSettings,
-    build_problem,
-    contact_cones,
-    load_cost_config,
-    solve,
-)
+from rh5_planner.ocp import PlanResult, SolverSettings, build_problem, contact_cones, solve
 
 CONFIG = load_cost_config()
 MU = CONFIG["contact_stability"]["mu"]

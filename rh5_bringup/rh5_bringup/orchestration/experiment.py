@@ -109,8 +109,8 @@ def planned_trajectory(settings: ExperimentSettings) -> tuple[Path, bool]:
     import crocoddyl  # noqa: F401, PLC0415 (before pinocchio, see design/crocoddyl_wheels.md)
 
     from rh5_planner.motions import get_motion  # noqa: PLC0415
+    from rh5_planner.ocp import SolverSettings, solve  # noqa: PLC0415
     from rh5_planner.plan_cli import ProgressBar  # noqa: PLC0415
-    from rh5_planner.problem import SolverSettings, solve  # noqa: PLC0415
 
     solver = SolverSettings(max_iterations=settings.max_iterations)
     bar = ProgressBar(solver.max_iterations, solver.stop_threshold, label=f"planning {settings.motion} ")

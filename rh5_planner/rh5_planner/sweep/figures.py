@@ -57,7 +57,7 @@ def actuator_base(key: str) -> tuple[str, float, str] | None:
     display units, unit), e.g. ``("Knee actuator velocity", 140.0, "mm/s")``; None otherwise. Stroke is the half
     range the factor widens."""
     from ..actuator_bounds import parallel_units  # noqa: PLC0415
-    from ..limit_analysis import match_joints  # noqa: PLC0415
+    from ..limit_scale import match_joints  # noqa: PLC0415
 
     pattern, _, kind = key.rpartition(":")
     joints = set(match_joints(pattern))

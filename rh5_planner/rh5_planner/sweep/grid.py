@@ -31,7 +31,7 @@ from typing import Any, Final
 
 import numpy as np
 
-from ..limit_analysis import JOINT_KINDS, LimitScale
+from ..limit_scale import JOINT_KINDS, LimitScale
 from ..motions import MotionError, MotionSpec, WalkMotion, get_motion
 
 __all__ = ["DEFAULT_CHAIN", "SPEED_KEY", "Axis", "Grid", "GridError", "SweepPoint", "parse_axis"]

@@ -2,7 +2,7 @@
 
 A :class:`PointTask` holds only names, numbers and plain containers (motion name, parameter overrides, limit
 factors, solver settings), so it pickles anywhere; :func:`solve_point` rebuilds the motion and its problem from it in
-the worker, solves it with the planner's own :func:`rh5_planner.problem.solve` (scaled limits as the design
+the worker, solves it with the planner's own :func:`rh5_planner.ocp.solve` (scaled limits as the design
 heuristic plans them), checks it with :func:`rh5_planner.limit_analysis.analyse` against the limits it was planned
 with and, for jumps, the jump height (:func:`rh5_planner.design.jump_height_task`). It never raises: an error becomes a
 row with status ``failed``. The outcome carries the solution as a :class:`WarmStart` for the neighbour it seeds.
@@ -27,7 +27,8 @@ from typing import Any, Final
 import numpy as np
 import numpy.typing as npt
 
-from ..limit_analysis import ACTUATOR_KINDS, JOINT_KINDS, MAPPED_ACTUATORS, LimitAnalysis, side_free_name
+from ..limit_analysis import LimitAnalysis
+from ..limit_scale import ACTUATOR_KINDS, JOINT_KINDS, MAPPED_ACTUATORS, side_free_name
 
 __all__ = [
     "STATUSES",
@@ -89,7 +90,7 @@ class PointTask:
     overrides: Mapping[str, Any]
     """Motion parameter overrides (``--set`` and the swept motion parameters)."""
     scale: tuple[tuple[str, str, float], ...]
-    """Limit factors (pattern, kind, factor), :class:`rh5_planner.limit_analysis.LimitScale` entries."""
+    """Limit factors (pattern, kind, factor), :class:`rh5_planner.limit_scale.LimitScale` entries."""
     max_iterations: int = 200
     stop_threshold: float = 1e-7
     nthreads: int = 1
@@ -176,11 +177,12 @@ def solve_point(task: PointTask, warm: WarmStart | None = None) -> PointOutcome:
     row = _base_row(task)
     start, cpu = time.perf_counter(), time.process_time()
     try:
-        # crocoddyl before pinocchio (design/crocoddyl_wheels.md): rh5_planner.problem imports it first
+        # crocoddyl before pinocchio (design/crocoddyl_wheels.md): rh5_planner.design imports it first
         from ..design import jump_height_task  # noqa: PLC0415
-        from ..limit_analysis import LimitScale, analyse  # noqa: PLC0415
+        from ..limit_analysis import analyse  # noqa: PLC0415
+        from ..limit_scale import LimitScale  # noqa: PLC0415
         from ..motions import get_motion  # noqa: PLC0415
-        from ..problem import SolverSettings, solve  # noqa: PLC0415
+        from ..ocp import SolverSettings, solve  # noqa: PLC0415
 
         motion = get_motion(task.motion, dict(task.overrides))
         scale = LimitScale(tuple(task.scale))
