@@ -11,3 +11,20 @@ Crocoddyl must be loaded before it (design/crocoddyl_wheels.md), also in a Ray w
 """
 
 import crocoddyl  # noqa: F401  (before pinocchio)
+
+from rh5_planner.sweep.engine import SerialExecutor, run_sweep
+from rh5_planner.sweep.grid import Axis, Grid, GridError, SweepPoint, parse_axis
+from rh5_planner.sweep.point import PointOutcome, PointTask, solve_point
+
+__all__ = [
+    "Axis",
+    "Grid",
+    "GridError",
+    "PointOutcome",
+    "PointTask",
+    "SerialExecutor",
+    "SweepPoint",
+    "parse_axis",
+    "run_sweep",
+    "solve_point",
+]
