@@ -11,6 +11,7 @@ dq = gain * (e . axis) cancels a base tilt e (world rotation vector) for gain = 
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 
 from rh5_joint_stabilizer.reference import FloatArray, ReferenceSample
 from rh5_msgs_py.names import JOINT_INDEX
@@ -20,20 +21,12 @@ ANKLE_JOINTS = ("LLAnkleRoll", "LLAnklePitch", "LRAnkleRoll", "LRAnklePitch")
 
 
 def _quaternion_to_rotation_vector(xyzw: FloatArray) -> FloatArray:
-    """Rotation vector (axis * angle) of a unit quaternion (x, y, z, w)."""
-    xyz, w = np.asarray(xyzw[:3], dtype=np.float64), float(xyzw[3])
-    if w < 0:
-        xyz, w = -xyz, -w
-    norm = float(np.linalg.norm(xyz))
-    if norm < 1e-12:
-        return 2.0 * xyz
-    return xyz / norm * 2.0 * np.arctan2(norm, w)
+    """Rotation vector (axis * angle, angle <= pi) of a unit quaternion (x, y, z, w): Pinocchio's ``log3``."""
+    return pin.log3(pin.Quaternion(np.asarray(xyzw, dtype=np.float64)).normalized())
 
 
 def ankle_axes_world() -> dict[str, FloatArray]:
     """World directions of the four ankle joint axes in the standing pose (from the RH5 model)."""
-    import pinocchio as pin  # noqa: PLC0415 (only when the correction is switched on)
-
     from rh5_hyrodyn_mapper.model import build_model, standing_configuration  # noqa: PLC0415
 
     model = build_model(free_flyer=True)

@@ -50,14 +50,11 @@ class Visual:
 
 
 def _rpy(rotation: np.ndarray) -> tuple[float, float, float]:
-    """URDF roll-pitch-yaw (fixed axes x, y, z) of a rotation matrix."""
-    pitch = math.asin(max(-1.0, min(1.0, -rotation[2, 0])))
-    if abs(rotation[2, 0]) < 1.0 - 1e-9:
-        roll = math.atan2(rotation[2, 1], rotation[2, 2])
-        yaw = math.atan2(rotation[1, 0], rotation[0, 0])
-    else:  # gimbal lock: put the rotation into yaw
-        roll, yaw = 0.0, math.atan2(-rotation[0, 1], rotation[1, 1])
-    return roll, pitch, yaw
+    """URDF roll-pitch-yaw (fixed axes x, y, z) of a rotation matrix (Pinocchio's ``rpy.matrixToRpy``)."""
+    import pinocchio as pin  # noqa: PLC0415 (generating the URDF text needs no pinocchio otherwise)
+
+    roll, pitch, yaw = pin.rpy.matrixToRpy(np.asarray(rotation, dtype=np.float64))
+    return float(roll), float(pitch), float(yaw)
 
 
 def _side(name: str) -> str:
