@@ -27,9 +27,10 @@ setup(
         *share_files("launch"),
         *share_files("config"),
     ],
-    # The control cycle's two mapping steps in C (kinematics/_compiled.c); the Python float paths stay the reference.
+    # Every submechanism's joint <-> actuator maths in C (kinematics/_compiled.c): one kernel for one sample (the
+    # 1 kHz control cycle) and for whole trajectories; required, there is no other implementation.
     ext_modules=[
-        Extension(f"{PACKAGE}.kinematics._compiled", [f"{PACKAGE}/kinematics/_compiled.c"], extra_compile_args=["-O2"])
+        Extension(f"{PACKAGE}.kinematics._compiled", [f"{PACKAGE}/kinematics/_compiled.c"], extra_compile_args=["-O3"])
     ],
     install_requires=["setuptools"],
     zip_safe=False,

@@ -1,341 +1,568 @@
-/* The whole robot's joint <-> actuator maps of ONE sample in C: the control cycle's two mapping steps.
+/* The joint <-> actuator maths of every RH5 submechanism, in one place, for one sample or a batch of N.
  *
- * The same arithmetic, in the same order, as the submechanisms' Python float paths
- * (``to_actuator_space_floats`` / ``to_joint_space_floats`` of lambda_rrpr.py, spu.py, ankle_sprr.py and
- * serial.py), which stay the reference: the Python wrapper (compiled.py) packs each unit's constants into
- * one row of a table and falls back to them for anything unusual. Python spends ~60 us (IK) and ~75 us
- * (FK) a cycle here on the interpreter's per-float work; this takes a few microseconds.
- *
- * Row layout (float64, ROW_WIDTH columns): kind, dof, first joint, first actuator, then per kind:
- *   COPY    pass-through of one joint (dof 1)
+ * Each unit is one row of a table (float64, ROW_WIDTH columns): kind, dof m, first joint, first actuator, then
+ * its constants, written by the Python models (kernels.py, lambda_rrpr.py, spu.py, ankle_sprr.py, serial.py),
+ * which also hold the geometry and turn a failure code into its reason:
  *   RRPR    phi0, k0, k1, r12, sign, moment_arm_max
- *   SPU     l00, l01, jinv0[4], mode, tolerance, max_iterations, max_step, legs 2 x (b[3], e0[3])
+ *   SPU     l0[2], jinv0[4], mode, tolerance, max_iterations, max_step, legs 2 x (b[3], e0[3])
  *   SPRR    as SPU, legs 2 x (s[3], f0[3], a0[3], r)
- *   LINEAR  T[3][3] (l = T y), Tinv[3][3], cond(T)
+ *   LINEAR  cond(T), T[3][3] (l = T y), Tinv[3][3]
+ *   COPY    nothing: m pass-through values (rotary joints; RobotMapper merges neighbours into one row)
+ * A model's maps run on a table of its one row; RobotMapper's on a table of every unit of the robot, so the
+ * 1 kHz control cycle's call is a batch of one through the same code as a whole trajectory.
  *
- * ik(table, q, v, tau, max_condition, l, ld, f) and fk(table, l, ld, f, q_guess, q, v, tau) write the
- * outputs (32 float64 each) and return -1, or the row whose unit needs the Python path: a refusal
- * (singular pose, lengths that do not assemble) that Python reports with its reason.
+ *   ik(table, n, q, v, a, tau, max_condition, l, ld, ldd, f, info)   joints -> actuators (l, J v, J a + bias, J^-T tau)
+ *   fk(table, n, l, ld, f, q_guess, q, v, tau, info)                 actuators -> joints (FK, J^-1 ld, J^T f)
+ *   pose(table, n, y, yd, jac, bias, cond)                           J, bias and condition of a one-row table
+ *
+ * Optional arguments are None (the matching outputs too). ik and fk return -1, or sample * rows + row of the first
+ * unit that failed (a refusal near a singular pose, lengths that do not assemble); with ``info`` (n x rows x 2) they
+ * go on and record per unit and sample the status (ik: 0 or -1; fk: Newton iterations >= 0 or a FK_* code) and a
+ * detail (ik: the condition number; fk: the final residual [m]).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>
 
 #define ROW_WIDTH 48
+#define MAX_DOF 3
 #define KIND_COPY 0
 #define KIND_RRPR 1
 #define KIND_SPU 2
 #define KIND_SPRR 3
 #define KIND_LINEAR 4
 #define LEGS 14 /* first leg column of SPU and SPRR rows */
+#define ROUNDING 1e-12 /* |cos(phi)| may exceed 1 by this much through rounding before a length is unreachable */
+#define FK_NOT_CONVERGED (-1)
+#define FK_WRONG_MODE (-2)
+#define FK_UNREACHABLE (-3)
+#define FK_SINGULAR (-4)
 
+/* One unit at one pose: lengths l, Jacobian J (row-major m x m) and acceleration bias J-dot y-dot. */
 typedef struct {
-    double l1, l2, j00, j01, j10, j11;
-} Fused;
+    double l[MAX_DOF], j[MAX_DOF * MAX_DOF], b[MAX_DOF];
+} Pose;
 
-/* (l1, l2, J) of a 2-SPU+1U unit at (c0, s0, c1, s1): Platform2SPU1U._fused without rates. */
-static Fused spu_fused(const double *row, double c0, double s0, double c1, double s1) {
-    double out[6];
-    for (int leg = 0; leg < 2; ++leg) {
-        const double *p = row + LEGS + 6 * leg;
-        double bx = p[0], by = p[1], bz = p[2], ex = p[3], ey = p[4], ez = p[5];
-        double px = c1 * ex + s1 * ez;
-        double wz = c1 * ez - s1 * ex;
-        double py = c0 * ey - s0 * wz;
-        double pz = s0 * ey + c0 * wz;
-        double dx = px - bx, dy = py - by, dz = pz - bz;
-        double l = pow(dx * dx + dy * dy + dz * dz, 0.5);
-        double my = bz * px - bx * pz, mz = bx * py - by * px;
-        out[3 * leg] = l;
-        out[3 * leg + 1] = (by * pz - bz * py) / l;
-        out[3 * leg + 2] = (c0 * my + s0 * mz) / l;
+/* The universal joint at y: R(y) = Rx(y0) Ry(y1) in the canonical frame, omega = W y_dot, alpha = W-dot y_dot. */
+typedef struct {
+    double c0, s0, c1, s1;
+    double omega[3], alpha[3];
+    int rates;
+} Ujoint;
+
+static Ujoint ujoint(const double *y, const double *yd) {
+    Ujoint u = {cos(y[0]), sin(y[0]), cos(y[1]), sin(y[1]), {0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}, yd != NULL};
+    if (yd != NULL) {
+        double w0 = yd[0], w1 = yd[1];
+        u.omega[0] = w0; /* W = [x, Rx(y0) y] = [(1, 0, 0), (0, c0, s0)] */
+        u.omega[1] = u.c0 * w1;
+        u.omega[2] = u.s0 * w1;
+        u.alpha[1] = -u.s0 * w0 * w1; /* alpha = y0d y1d (x cross Rx(y0) y); alpha_x = 0 */
+        u.alpha[2] = u.c0 * w0 * w1;
     }
-    Fused r = {out[0], out[3], out[1], out[2], out[4], out[5]};
-    return r;
+    return u;
 }
 
-/* The same for a 2-SPRR+1U ankle: Ankle2SPRR1U._fused without rates. */
-static Fused sprr_fused(const double *row, double c0, double s0, double c1, double s1) {
-    double out[6];
-    for (int leg = 0; leg < 2; ++leg) {
-        const double *p = row + LEGS + 10 * leg;
-        double sx = p[0], sy = p[1], sz = p[2], fx0 = p[3], fy0 = p[4], fz0 = p[5];
-        double ax0 = p[6], ay0 = p[7], az0 = p[8], r = p[9];
-        double fx = c1 * fx0 + s1 * fz0;
-        double t = c1 * fz0 - s1 * fx0;
-        double fy = c0 * fy0 - s0 * t;
-        double fz = s0 * fy0 + c0 * t;
-        double ax = c1 * ax0 + s1 * az0;
-        t = c1 * az0 - s1 * ax0;
-        double ay = c0 * ay0 - s0 * t;
-        double az = s0 * ay0 + c0 * t;
-        double tx = sx - fx, ty = sy - fy, tz = sz - fz;
-        double alpha = ax * tx + ay * ty + az * tz;
-        double px = tx - alpha * ax, py = ty - alpha * ay, pz = tz - alpha * az;
-        double rho = pow(px * px + py * py + pz * pz, 0.5);
-        double e = rho - r;
-        double l = pow(alpha * alpha + e * e, 0.5);
-        double g = r / rho;
-        double kx = fx + g * px, ky = fy + g * py, kz = fz + g * pz;
-        double my = sz * kx - sx * kz, mz = sx * ky - sy * kx;
-        out[3 * leg] = l;
-        out[3 * leg + 1] = (sy * kz - sz * ky) / l;
-        out[3 * leg + 2] = (c0 * my + s0 * mz) / l;
+static void cross(const double *a, const double *b, double *out) {
+    out[0] = a[1] * b[2] - a[2] * b[1];
+    out[1] = a[2] * b[0] - a[0] * b[2];
+    out[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static double dot(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+/* R(y) p0 for a point or direction p0 of the platform at y = 0. */
+static void rotate(const Ujoint *u, const double *p0, double *out) {
+    double t = u->c1 * p0[2] - u->s1 * p0[0];
+    out[0] = u->c1 * p0[0] + u->s1 * p0[2];
+    out[1] = u->c0 * p0[1] - u->s0 * t;
+    out[2] = u->s0 * p0[1] + u->c0 * t;
+}
+
+/* A point's velocity omega x p and acceleration alpha x p + omega x (omega x p) on the platform. */
+static void motion(const Ujoint *u, const double *p, double *vel, double *acc) {
+    double a[3], q[3];
+    cross(u->omega, p, vel);
+    cross(u->alpha, p, a);
+    cross(u->omega, vel, q);
+    for (int i = 0; i < 3; ++i) acc[i] = a[i] + q[i];
+}
+
+/* One leg's Jacobian row (design/mechanisms.md 4.3, 5.3): l_dot = (base x point) . omega / l, omega = W y_dot. */
+static void leg_row(const Ujoint *u, const double *base, const double *point, double l, double *row) {
+    double m[3];
+    cross(base, point, m);
+    row[0] = m[0] / l;
+    row[1] = (u->c0 * m[1] + u->s0 * m[2]) / l;
+}
+
+/* 2-SPU+1U leg (section 4): base U joint b, platform S joint e0 at y = 0; l = |R e0 - b|, bias (4.4). */
+static void spu_leg(const Ujoint *u, const double *p, double *l, double *row, double *b) {
+    double e[3], d[3];
+    rotate(u, p + 3, e);
+    for (int i = 0; i < 3; ++i) d[i] = e[i] - p[i];
+    *l = sqrt(dot(d, d));
+    leg_row(u, p, e, *l, row);
+    if (u->rates) {
+        double v[3], acc[3];
+        motion(u, e, v, acc);
+        double ndv = dot(d, v) / *l;
+        *b = dot(d, acc) / *l + (dot(v, v) - ndv * ndv) / *l;
     }
-    Fused r = {out[0], out[3], out[1], out[2], out[4], out[5]};
-    return r;
 }
 
-static Fused platform_fused(const double *row, double y0, double y1) {
-    double c0 = cos(y0), s0 = sin(y0), c1 = cos(y1), s1 = sin(y1);
-    return (int)row[0] == KIND_SPU ? spu_fused(row, c0, s0, c1, s1) : sprr_fused(row, c0, s0, c1, s1);
+/* 2-SPRR+1U leg (section 5): shank pivot s, crank of radius r about the foot axis (centre f0, direction a0);
+ * l = sqrt(alpha^2 + (rho - r)^2) with alpha = a . delta, rho = |delta - alpha a|, delta = s - f (5.2); the rod
+ * end k on the crank circle closest to s gives J (5.3); the bias differentiates the scalar identities twice (5.4). */
+static void sprr_leg(const Ujoint *u, const double *p, double *l, double *row, double *b) {
+    const double *s = p, r = p[9];
+    double f[3], a[3], t[3], q[3], k[3];
+    rotate(u, p + 3, f);
+    rotate(u, p + 6, a);
+    for (int i = 0; i < 3; ++i) t[i] = s[i] - f[i];
+    double alpha = dot(a, t);
+    for (int i = 0; i < 3; ++i) q[i] = t[i] - alpha * a[i];
+    double rho = sqrt(dot(q, q)), e = rho - r;
+    *l = sqrt(alpha * alpha + e * e);
+    double g = r / rho;
+    for (int i = 0; i < 3; ++i) k[i] = f[i] + g * q[i];
+    leg_row(u, s, k, *l, row);
+    if (u->rates) {
+        double fv[3], fa[3], av[3], aa[3];
+        motion(u, f, fv, fa); /* delta_dot = -f_dot */
+        motion(u, a, av, aa);
+        double d_dot = -dot(t, fv);                     /* D_dot / 2, D = |delta|^2 */
+        double d_ddot = dot(fv, fv) - dot(t, fa);       /* D_ddot / 2 */
+        double a_dot = dot(av, t) - dot(a, fv);         /* A = a . delta = alpha */
+        double a_ddot = dot(aa, t) - 2.0 * dot(av, fv) - dot(a, fa);
+        double rho_dot = (d_dot - alpha * a_dot) / rho;
+        double rho_ddot = (d_ddot - a_dot * a_dot - alpha * a_ddot - rho_dot * rho_dot) / rho;
+        double l_dot = (d_dot - r * rho_dot) / *l;
+        *b = (d_ddot - r * rho_ddot - l_dot * l_dot) / *l;
+    }
 }
 
-/* y wrapped to [-pi, pi] as spu._wrap does (Python's float % takes the divisor's sign). */
+/* l = T x over the non-zero entries of T (row-major m x m), plus ``add`` when given. */
+static void matvec(int m, const double *t, const double *x, const double *add, double *out, int transpose) {
+    for (int i = 0; i < m; ++i) {
+        double sum = 0.0;
+        for (int k = 0; k < m; ++k) {
+            double tik = transpose ? t[MAX_DOF * k + i] : t[MAX_DOF * i + k];
+            if (tik != 0.0) sum += tik * x[k];
+        }
+        out[i] = add == NULL ? sum : sum + add[i];
+    }
+}
+
+/* The pose of one unit at joints y; the bias only when yd is given. */
+static void unit_pose(const double *row, const double *y, const double *yd, Pose *p) {
+    switch ((int)row[0]) {
+        case KIND_RRPR: { /* section 3: l^2 = k0 - k1 cos(phi), phi = phi0 + q */
+            double k1 = row[6], phi = row[4] + y[0], c = cos(phi);
+            double l = sqrt(row[5] - k1 * c), j = row[7] * sin(phi) / l;
+            p->l[0] = l;
+            p->j[0] = j;
+            if (yd != NULL) p->b[0] = (0.5 * k1 * c - j * j) / l * yd[0] * yd[0];
+            return;
+        }
+        case KIND_SPU:
+        case KIND_SPRR: {
+            Ujoint u = ujoint(y, yd);
+            for (int leg = 0; leg < 2; ++leg) {
+                if ((int)row[0] == KIND_SPU)
+                    spu_leg(&u, row + LEGS + 6 * leg, p->l + leg, p->j + MAX_DOF * leg, p->b + leg);
+                else
+                    sprr_leg(&u, row + LEGS + 10 * leg, p->l + leg, p->j + MAX_DOF * leg, p->b + leg);
+            }
+            return;
+        }
+        case KIND_COPY: { /* J = I, bias 0 (pose() only: ik and fk copy the values) */
+            int m = (int)row[1];
+            for (int i = 0; i < m; ++i) {
+                for (int k = 0; k < m; ++k) p->j[MAX_DOF * i + k] = i == k ? 1.0 : 0.0;
+                p->l[i] = y[i];
+                p->b[i] = 0.0;
+            }
+            return;
+        }
+        default: { /* KIND_LINEAR: J = T, bias 0 */
+            int m = (int)row[1];
+            for (int i = 0; i < m; ++i)
+                for (int k = 0; k < m; ++k) p->j[MAX_DOF * i + k] = row[5 + 3 * i + k];
+            matvec(m, p->j, y, NULL, p->l, 0);
+            for (int i = 0; i < m; ++i) p->b[i] = 0.0;
+        }
+    }
+}
+
+/* The unit's condition number at the pose: h_max / |J| (RRPR), cond_2(J) in closed form (2x2), cond(T). */
+static double unit_condition(const double *row, const Pose *p) {
+    int kind = (int)row[0];
+    if (kind == KIND_RRPR) return row[9] / fabs(p->j[0]);
+    if (kind == KIND_LINEAR) return row[4];
+    if (kind == KIND_COPY) return 1.0;
+    const double *j = p->j;
+    double frob = j[0] * j[0] + j[1] * j[1] + j[3] * j[3] + j[4] * j[4];
+    double det = j[0] * j[4] - j[1] * j[3];
+    double disc = frob * frob - 4.0 * det * det;
+    disc = sqrt(disc < 0.0 ? 0.0 : disc); /* NaN kept */
+    return det != 0.0 ? (frob + disc) / (2.0 * fabs(det)) : INFINITY;
+}
+
+/* x = J^-T t (transpose) or J^-1 t; T^-1 for linear units, closed form for one and two joints. 1 if J is singular. */
+static int unit_solve(const double *row, const double *j, const double *t, double *x, int transpose) {
+    switch ((int)row[1] == 1 && (int)row[0] != KIND_LINEAR ? 1 : (int)row[0] == KIND_LINEAR ? 0 : 2) {
+        case 0: {
+            double tinv[MAX_DOF * MAX_DOF];
+            int m = (int)row[1];
+            for (int i = 0; i < m; ++i)
+                for (int k = 0; k < m; ++k) tinv[MAX_DOF * i + k] = row[14 + 3 * i + k];
+            matvec(m, tinv, t, NULL, x, transpose);
+            return 0;
+        }
+        case 1:
+            x[0] = t[0] / j[0];
+            return j[0] == 0.0;
+        default: {
+            double j00 = j[0], j01 = j[1], j10 = j[3], j11 = j[4], det = j00 * j11 - j01 * j10;
+            double a = transpose ? j10 : j01, c = transpose ? j01 : j10;
+            x[0] = (j11 * t[0] - a * t[1]) / det;
+            x[1] = (j00 * t[1] - c * t[0]) / det;
+            return det == 0.0;
+        }
+    }
+}
+
+/* y wrapped to [-pi, pi] (Python's float % takes the divisor's sign). */
 static double wrap(double y) {
     if (-M_PI <= y && y <= M_PI) return y;
     double m = fmod(y + M_PI, 2.0 * M_PI);
-    if (m != 0.0 && m < 0.0) m += 2.0 * M_PI;
+    if (m < 0.0) m += 2.0 * M_PI;
     return m - M_PI;
 }
 
-/* Newton forward kinematics of a 2-DOF unit (UniversalJointPlatform._newton_floats); 0 or -1 (Python decides). */
-static int platform_newton(const double *row, double t0, double t1, double y0, double y1, double *y, Fused *jac) {
-    double tol = row[11], max_step = row[13], mode = row[10];
+/* Newton on IK(y) = l of a 2-DOF unit (HyRoDyn's approach), warm from ``guess`` or cold from J(0)^-1 (l - l0),
+ * steps clamped to max_step; the iterations, or FK_NOT_CONVERGED / FK_WRONG_MODE (det J of another sign than at
+ * the zero pose). y comes back wrapped to [-pi, pi], with the pose (J) at exactly that y. */
+static int platform_newton(const double *row, const double *t, const double *guess, double *y, Pose *p,
+                           double *residual) {
+    double mode = row[10], tol = row[11], max_step = row[13];
     int cap = (int)row[12];
+    if (guess != NULL) {
+        y[0] = guess[0];
+        y[1] = guess[1];
+    } else {
+        double d0 = t[0] - row[4], d1 = t[1] - row[5];
+        y[0] = row[6] * d0 + row[7] * d1;
+        y[1] = row[8] * d0 + row[9] * d1;
+    }
     for (int iteration = 0; iteration <= cap; ++iteration) {
-        Fused k = platform_fused(row, y0, y1);
-        double r0 = k.l1 - t0, r1 = k.l2 - t1;
-        if (isnan(r0) || isnan(r1)) return -1; /* Python's max() and fmax() treat NaN differently */
-        double residual = fmax(fabs(r0), fabs(r1));
-        double det = k.j00 * k.j11 - k.j01 * k.j10;
-        if (residual <= tol) {
-            if (det * mode <= 0.0) return -1;
-            double w0 = wrap(y0), w1 = wrap(y1);
-            if (w0 != y0 || w1 != y1) k = platform_fused(row, w0, w1);
-            y[0] = w0;
-            y[1] = w1;
-            *jac = k;
-            return 0;
+        unit_pose(row, y, NULL, p);
+        double r0 = p->l[0] - t[0], r1 = p->l[1] - t[1];
+        *residual = isnan(r0) || isnan(r1) ? NAN : fmax(fabs(r0), fabs(r1));
+        const double *j = p->j;
+        double det = j[0] * j[4] - j[1] * j[3];
+        if (*residual <= tol) {
+            if (det * mode <= 0.0) return FK_WRONG_MODE;
+            double w0 = wrap(y[0]), w1 = wrap(y[1]);
+            if (w0 != y[0] || w1 != y[1]) {
+                y[0] = w0;
+                y[1] = w1;
+                unit_pose(row, y, NULL, p);
+            }
+            return iteration;
         }
-        if (iteration == cap || !(isfinite(residual) && det != 0.0)) return -1;
-        double d0 = (k.j11 * r0 - k.j01 * r1) / det;
-        double d1 = (k.j00 * r1 - k.j10 * r0) / det;
-        double step = fmax(fabs(d0), fabs(d1));
+        if (iteration == cap || !(isfinite(*residual) && det != 0.0)) break;
+        double d[2];
+        unit_solve(row, j, (double[2]){r0, r1}, d, 0);
+        double step = fmax(fabs(d[0]), fabs(d[1]));
         if (step > max_step) {
-            d0 = d0 * (max_step / step);
-            d1 = d1 * (max_step / step);
+            d[0] *= max_step / step;
+            d[1] *= max_step / step;
         }
-        y0 -= d0;
-        y1 -= d1;
+        y[0] -= d[0];
+        y[1] -= d[1];
     }
-    return -1;
+    return FK_NOT_CONVERGED;
 }
 
-/* One unit of the inverse map; 0, or -1 when Python must decide (a refusal). */
-static int ik_row(const double *row, const double *q, const double *v, const double *tau, double max_condition,
-                  double *l, double *ld, double *f) {
-    int kind = (int)row[0], j = (int)row[2], a = (int)row[3];
-    switch (kind) {
-        case KIND_COPY:
-            l[a] = q[j];
-            ld[a] = v[j];
-            f[a] = tau[j];
-            return 0;
+/* Forward kinematics of one unit: closed form (RRPR: cos(phi) = (k0 - l^2) / k1, one branch), Newton (2-DOF),
+ * T^-1 l (linear); the iterations (0 in closed form) or a FK_* code, with the pose at the returned y. */
+static int unit_forward(const double *row, const double *l, const double *guess, double *y, Pose *p,
+                        double *residual) {
+    *residual = 0.0;
+    switch ((int)row[0]) {
         case KIND_RRPR: {
-            double phi0 = row[4], k0 = row[5], k1 = row[6], r12 = row[7], arm_max = row[9];
-            double phi = phi0 + q[j];
-            double c = cos(phi);
-            double length = sqrt(k0 - k1 * c);
-            double jac = r12 * sin(phi) / length;
-            if (!(fabs(jac) * max_condition >= arm_max) || jac == 0.0) return -1;
-            l[a] = length;
-            f[a] = tau[j] / jac;
-            ld[a] = jac * v[j];
+            double k0 = row[5], k1 = row[6], c = (k0 - l[0] * l[0]) / k1;
+            if (!(fabs(c) <= 1.0 + ROUNDING)) {
+                double lo = sqrt(k0 - k1), hi = sqrt(k0 + k1);
+                *residual = isfinite(l[0]) ? fmax(fmax(lo - l[0], l[0] - hi), 0.0) : INFINITY;
+                return FK_UNREACHABLE;
+            }
+            y[0] = row[8] * acos(c < -1.0 ? -1.0 : c > 1.0 ? 1.0 : c) - row[4];
+            unit_pose(row, y, NULL, p);
             return 0;
         }
         case KIND_SPU:
-        case KIND_SPRR: {
-            Fused k = platform_fused(row, q[j], q[j + 1]);
-            double w0 = v[j], w1 = v[j + 1];
-            double det = k.j00 * k.j11 - k.j01 * k.j10;
-            double frob = k.j00 * k.j00 + k.j01 * k.j01 + k.j10 * k.j10 + k.j11 * k.j11;
-            double disc = frob * frob - 4.0 * det * det;
-            disc = sqrt(disc < 0.0 ? 0.0 : disc);
-            double cond = det != 0.0 ? (frob + disc) / (2.0 * fabs(det)) : INFINITY;
-            if (!(cond <= max_condition)) return -1;
-            double t0 = tau[j], t1 = tau[j + 1];
-            l[a] = k.l1;
-            l[a + 1] = k.l2;
-            ld[a] = k.j00 * w0 + k.j01 * w1;
-            ld[a + 1] = k.j10 * w0 + k.j11 * w1;
-            f[a] = (k.j11 * t0 - k.j10 * t1) / det;
-            f[a + 1] = (k.j00 * t1 - k.j01 * t0) / det;
+        case KIND_SPRR:
+            return platform_newton(row, l, guess, y, p, residual);
+        default: {
+            double zeros[MAX_DOF] = {0.0, 0.0, 0.0};
+            unit_solve(row, NULL, l, y, 0);
+            unit_pose(row, zeros, NULL, p); /* J = T everywhere */
             return 0;
         }
-        case KIND_LINEAR: {
-            int m = (int)row[1];
-            const double *t = row + 4, *tinv = row + 13;
-            if (!(row[22] <= max_condition)) return -1;
-            for (int i = 0; i < m; ++i) {
-                double sl = 0.0, sld = 0.0, sf = 0.0;
-                for (int k = 0; k < m; ++k) {
-                    double tik = t[3 * i + k], fik = tinv[3 * k + i]; /* f = Tinv^T tau */
-                    if (tik != 0.0) {
-                        sl += tik * q[j + k];
-                        sld += tik * v[j + k];
-                    }
-                    if (fik != 0.0) sf += fik * tau[j + k];
-                }
-                l[a + i] = sl;
-                ld[a + i] = sld;
-                f[a + i] = sf;
-            }
-            return 0;
-        }
-        default:
-            return -1;
     }
 }
 
-/* One unit of the forward map; 0, or -1 when Python must decide. */
-static int fk_row(const double *row, const double *l, const double *ld, const double *f, const double *guess,
-                  double *q, double *v, double *tau) {
-    int kind = (int)row[0], j = (int)row[2], a = (int)row[3];
-    switch (kind) {
-        case KIND_COPY:
-            q[j] = l[a];
-            v[j] = ld[a];
-            tau[j] = f[a];
-            return 0;
-        case KIND_RRPR: {
-            double phi0 = row[4], k0 = row[5], k1 = row[6], r12 = row[7], sign = row[8];
-            double length = l[a];
-            double c = (k0 - length * length) / k1;
-            if (!(fabs(c) <= 1.0)) return -1;
-            double y = sign * acos(c) - phi0;
-            double phi = phi0 + y;
-            double jac = r12 * sin(phi) / sqrt(k0 - k1 * cos(phi));
-            if (jac == 0.0) return -1;
-            q[j] = y;
-            v[j] = ld[a] / jac;
-            tau[j] = jac * f[a];
-            return 0;
-        }
-        case KIND_SPU:
-        case KIND_SPRR: {
-            double y[2];
-            Fused k;
-            if (platform_newton(row, l[a], l[a + 1], guess[j], guess[j + 1], y, &k) != 0) return -1;
-            double det = k.j00 * k.j11 - k.j01 * k.j10;
-            if (det == 0.0) return -1;
-            double u0 = ld[a], u1 = ld[a + 1], f0 = f[a], f1 = f[a + 1];
-            q[j] = y[0];
-            q[j + 1] = y[1];
-            v[j] = (k.j11 * u0 - k.j01 * u1) / det;
-            v[j + 1] = (k.j00 * u1 - k.j10 * u0) / det;
-            tau[j] = k.j00 * f0 + k.j10 * f1;
-            tau[j + 1] = k.j01 * f0 + k.j11 * f1;
-            return 0;
-        }
-        case KIND_LINEAR: {
-            int m = (int)row[1];
-            const double *t = row + 4, *tinv = row + 13;
-            for (int i = 0; i < m; ++i) {
-                double sq = 0.0, sv = 0.0, st = 0.0;
-                for (int k = 0; k < m; ++k) {
-                    double ik = tinv[3 * i + k], tk = t[3 * k + i]; /* tau = T^T f */
-                    if (ik != 0.0) {
-                        sq += ik * l[a + k];
-                        sv += ik * ld[a + k];
-                    }
-                    if (tk != 0.0) st += tk * f[a + k];
-                }
-                q[j + i] = sq;
-                v[j + i] = sv;
-                tau[j + i] = st;
-            }
-            return 0;
-        }
-        default:
-            return -1;
-    }
+/* out = x: the m values of a pass-through unit. */
+static void copy(int m, const double *x, double *out) {
+    for (int i = 0; i < m; ++i) out[i] = x[i];
 }
 
-/* The buffers of one call: a (rows, ROW_WIDTH) table and seven vectors of 32 float64 (three written). */
+/* The arrays of one sample, NULL where not given: ik (q, v, a, tau, l, ld, ldd, f), fk (l, ld, f, q_guess, q, v,
+ * tau). A unit map writes its block and returns its status (< 0: failed). */
+typedef int (*UnitMap)(const double *row, double *const *x, double max_condition, double *info);
+
+/* Joints -> actuators of one unit: l, J v, J a + bias, J^-T tau; -1 when the force map is refused. */
+static int ik_unit(const double *row, double *const *x, double max_condition, double *info) {
+    int m = (int)row[1], jj = (int)row[2], aa = (int)row[3];
+    const double *q = x[0] + jj, *v = x[1], *a = x[2], *tau = x[3];
+    double *ld = x[5], *ldd = x[6], *f = x[7];
+    int status = 0;
+    double condition = 1.0;
+    if ((int)row[0] == KIND_COPY) {
+        copy(m, q, x[4] + aa);
+        if (v != NULL) copy(m, v + jj, ld + aa);
+        if (a != NULL) copy(m, a + jj, ldd + aa);
+        if (tau != NULL) copy(m, tau + jj, f + aa);
+    } else {
+        Pose p;
+        unit_pose(row, q, a != NULL ? v + jj : NULL, &p);
+        copy(m, p.l, x[4] + aa);
+        if (tau != NULL) {
+            condition = unit_condition(row, &p);
+            unit_solve(row, p.j, tau + jj, f + aa, 1);
+        }
+        if (v != NULL) matvec(m, p.j, v + jj, NULL, ld + aa, 0);
+        if (a != NULL) matvec(m, p.j, a + jj, p.b, ldd + aa, 0);
+    }
+    if (tau != NULL && !(condition <= max_condition)) status = -1;
+    if (info != NULL) {
+        info[0] = status;
+        info[1] = condition;
+    }
+    return status;
+}
+
+/* Actuators -> joints of one unit: y, J^-1 ld, J^T f; the iterations, or a FK_* code. */
+static int fk_unit(const double *row, double *const *x, double max_condition, double *info) {
+    int m = (int)row[1], jj = (int)row[2], aa = (int)row[3];
+    const double *l = x[0] + aa, *ld = x[1], *f = x[2], *guess = x[3];
+    double *v = x[5], *tau = x[6], residual = 0.0;
+    int status = 0;
+    (void)max_condition;
+    if ((int)row[0] == KIND_COPY) {
+        copy(m, l, x[4] + jj);
+        if (ld != NULL) copy(m, ld + aa, v + jj);
+        if (f != NULL) copy(m, f + aa, tau + jj);
+    } else {
+        Pose p;
+        status = unit_forward(row, l, guess != NULL ? guess + jj : NULL, x[4] + jj, &p, &residual);
+        if (status >= 0) {
+            if (ld != NULL && unit_solve(row, p.j, ld + aa, v + jj, 0)) status = FK_SINGULAR;
+            if (f != NULL) matvec(m, p.j, f + aa, NULL, tau + jj, 1);
+        }
+    }
+    if (info != NULL) {
+        info[0] = status;
+        info[1] = residual;
+    }
+    return status;
+}
+
+/* --- the Python calls: buffers, checks, the loop over samples and units --------------------------------------- */
+
+#define MAX_ARRAYS 8
+
+/* One array argument: its name, which vectors' width it has (0: joints, 1: actuators), whether it is written, the
+ * argument that must be given with it (-1: none) and the one it needs (-1: none). */
 typedef struct {
-    Py_buffer table, in[4], out[3];
-    int n_in;
+    const char *name;
+    int actuators, output, pair, needs;
+} Spec;
+
+static const Spec IK_ARGS[] = {{"q", 0, 0, 4, -1},   {"v", 0, 0, 5, -1},   {"a", 0, 0, 6, 1},    {"tau", 0, 0, 7, -1},
+                               {"l", 1, 1, -1, -1},  {"ld", 1, 1, -1, -1}, {"ldd", 1, 1, -1, -1}, {"f", 1, 1, -1, -1}};
+static const Spec FK_ARGS[] = {{"l", 1, 0, 4, -1},  {"ld", 1, 0, 5, -1}, {"f", 1, 0, 6, -1}, {"q_guess", 0, 0, -1, -1},
+                               {"q", 0, 1, -1, -1}, {"v", 0, 1, -1, -1}, {"tau", 0, 1, -1, -1}};
+
+typedef struct {
+    Py_buffer view[MAX_ARRAYS + 2];
+    int count;
 } Buffers;
 
 static void release(Buffers *b) {
-    PyBuffer_Release(&b->table);
-    for (int i = 0; i < b->n_in; ++i) PyBuffer_Release(&b->in[i]);
-    for (int i = 0; i < 3; ++i) PyBuffer_Release(&b->out[i]);
+    for (int i = 0; i < b->count; ++i) PyBuffer_Release(&b->view[i]);
+    b->count = 0;
 }
 
-static int check(Buffers *b) {
-    if (b->table.len % (ROW_WIDTH * sizeof(double)) != 0) {
-        PyErr_SetString(PyExc_ValueError, "table: rows of ROW_WIDTH float64 expected");
+/* The C-contiguous float64 data of ``obj`` (NULL for None): ``values`` of them, or with ``per_sample`` set, any
+ * whole number per sample of the n, written there. -1 with an exception (a BufferError if not C-contiguous). */
+static int take(Buffers *b, PyObject *obj, int writable, Py_ssize_t values, Py_ssize_t *per_sample, Py_ssize_t n,
+                const char *what, double **out) {
+    *out = NULL;
+    if (obj == Py_None) return 0;
+    Py_buffer *view = &b->view[b->count];
+    if (PyObject_GetBuffer(obj, view, writable ? PyBUF_WRITABLE : PyBUF_SIMPLE) != 0) return -1;
+    b->count++;
+    Py_ssize_t count = view->len / (Py_ssize_t)sizeof(double);
+    if (per_sample != NULL) {
+        *per_sample = n > 0 ? count / n : 0;
+        values = *per_sample * n;
+    }
+    if (n <= 0 || view->len != values * (Py_ssize_t)sizeof(double)) {
+        PyErr_Format(PyExc_ValueError, "%s: %zd float64 expected, got %zd bytes", what, values, view->len);
         return -1;
     }
-    for (int i = 0; i < b->n_in; ++i)
-        if (b->in[i].len != 32 * (Py_ssize_t)sizeof(double)) {
-            PyErr_SetString(PyExc_ValueError, "inputs: 32 float64 each expected");
-            return -1;
-        }
-    for (int i = 0; i < 3; ++i)
-        if (b->out[i].len != 32 * (Py_ssize_t)sizeof(double)) {
-            PyErr_SetString(PyExc_ValueError, "outputs: 32 float64 each expected");
-            return -1;
-        }
+    *out = view->buf;
     return 0;
 }
 
-static PyObject *ik(PyObject *self, PyObject *args) {
-    Buffers b = {.n_in = 3};
-    double max_condition;
-    if (!PyArg_ParseTuple(args, "y*y*y*y*dw*w*w*", &b.table, &b.in[0], &b.in[1], &b.in[2], &max_condition,
-                          &b.out[0], &b.out[1], &b.out[2]))
+/* The table's rows, checked against the joint and actuator widths; -1 with an exception. */
+static Py_ssize_t table_rows(Buffers *b, PyObject *obj, Py_ssize_t joints, Py_ssize_t actuators, double **table) {
+    *table = NULL;
+    Py_buffer *view = &b->view[b->count];
+    if (PyObject_GetBuffer(obj, view, PyBUF_SIMPLE) != 0) return -1;
+    b->count++;
+    Py_ssize_t rows = view->len / (ROW_WIDTH * (Py_ssize_t)sizeof(double));
+    if (view->len != rows * ROW_WIDTH * (Py_ssize_t)sizeof(double)) {
+        PyErr_SetString(PyExc_ValueError, "table: rows of ROW_WIDTH float64 expected");
+        return -1;
+    }
+    const double *t = view->buf;
+    double jw = (double)joints, aw = (double)actuators;
+    for (Py_ssize_t r = 0; r < rows; ++r) { /* float compares only: this runs on every call */
+        const double *row = t + r * ROW_WIDTH;
+        double kind = row[0], m = row[1];
+        int ok = (kind == KIND_COPY     ? m >= 1.0
+                  : kind == KIND_LINEAR ? m >= 1.0 && m <= MAX_DOF
+                  : kind == KIND_RRPR   ? m == 1.0
+                                        : (kind == KIND_SPU || kind == KIND_SPRR) && m == 2.0) &&
+                 row[2] >= 0.0 && row[3] >= 0.0 && row[2] + m <= jw && row[3] + m <= aw;
+        if (!ok) {
+            PyErr_Format(PyExc_ValueError, "table row %zd: not a unit within %zd joints and %zd actuators", r,
+                         joints, actuators);
+            return -1;
+        }
+    }
+    *table = view->buf;
+    return rows;
+}
+
+/* One ik or fk call: (table, n, inputs..., [max_condition,] outputs..., info) -> -1 or the first failure. The first
+ * input and the first output set the widths; every unit of the table maps every sample (all of them with ``info``,
+ * else up to the first failure). */
+static PyObject *run(PyObject *args, const Spec *spec, int count, int inputs, int with_condition, UnitMap unit) {
+    Py_ssize_t size = PyTuple_GET_SIZE(args);
+    if (size != 3 + count + with_condition) {
+        PyErr_Format(PyExc_TypeError, "function takes exactly %d arguments (%zd given)", 3 + count + with_condition,
+                     size);
         return NULL;
-    if (check(&b) != 0) {
+    }
+    PyObject *obj[MAX_ARRAYS];
+    double max_condition = 0.0, *x[MAX_ARRAYS], *table, *info;
+    Py_ssize_t n = PyLong_AsSsize_t(PyTuple_GET_ITEM(args, 1)), k = 2;
+    for (int i = 0; i < count; ++i) {
+        if (i == inputs && with_condition) max_condition = PyFloat_AsDouble(PyTuple_GET_ITEM(args, k++));
+        obj[i] = PyTuple_GET_ITEM(args, k++);
+    }
+    if (PyErr_Occurred()) return NULL;
+    Buffers b = {.count = 0};
+    Py_ssize_t width[2] = {0, 0}, rows = 0;
+    int bad = take(&b, obj[0], 0, 0, &width[spec[0].actuators], n, spec[0].name, &x[0]) != 0 ||
+              take(&b, obj[inputs], 1, 0, &width[spec[inputs].actuators], n, spec[inputs].name, &x[inputs]) != 0 ||
+              (rows = table_rows(&b, PyTuple_GET_ITEM(args, 0), width[0], width[1], &table)) < 0;
+    for (int i = 1; i < count && !bad; ++i)
+        if (i != inputs)
+            bad = take(&b, obj[i], spec[i].output, n * width[spec[i].actuators], NULL, n, spec[i].name, &x[i]) != 0;
+    if (!bad) bad = take(&b, PyTuple_GET_ITEM(args, size - 1), 1, n * rows * 2, NULL, n, "info", &info) != 0;
+    for (int i = 0; i < count && !bad; ++i) {
+        int pair = spec[i].pair, needs = spec[i].needs;
+        if ((x[i] == NULL && i == 0) || (pair >= 0 && (x[i] == NULL) != (x[pair] == NULL)) ||
+            (needs >= 0 && x[i] != NULL && x[needs] == NULL)) {
+            PyErr_Format(PyExc_ValueError, "%s: every given input needs its output (%s)",
+                         with_condition ? "ik" : "fk", spec[i].name);
+            bad = 1;
+        }
+    }
+    if (bad) {
         release(&b);
         return NULL;
     }
-    const double *table = b.table.buf;
-    Py_ssize_t rows = b.table.len / (ROW_WIDTH * sizeof(double));
     long failed = -1;
-    for (Py_ssize_t r = 0; r < rows && failed < 0; ++r)
-        if (ik_row(table + r * ROW_WIDTH, b.in[0].buf, b.in[1].buf, b.in[2].buf, max_condition, b.out[0].buf,
-                   b.out[1].buf, b.out[2].buf) != 0)
-            failed = (long)r;
+    for (Py_ssize_t s = 0; s < n && (failed < 0 || info != NULL); ++s) {
+        double *p[MAX_ARRAYS];
+        for (int i = 0; i < count; ++i) p[i] = x[i] != NULL ? x[i] + s * width[spec[i].actuators] : NULL;
+        for (Py_ssize_t r = 0; r < rows; ++r) {
+            double *unit_info = info != NULL ? info + 2 * (s * rows + r) : NULL;
+            if (unit(table + r * ROW_WIDTH, p, max_condition, unit_info) < 0 && failed < 0) {
+                failed = (long)(s * rows + r);
+                if (info == NULL) break;
+            }
+        }
+    }
     release(&b);
     return PyLong_FromLong(failed);
 }
 
-static PyObject *fk(PyObject *self, PyObject *args) {
-    Buffers b = {.n_in = 4};
-    if (!PyArg_ParseTuple(args, "y*y*y*y*y*w*w*w*", &b.table, &b.in[0], &b.in[1], &b.in[2], &b.in[3], &b.out[0],
-                          &b.out[1], &b.out[2]))
-        return NULL;
-    if (check(&b) != 0) {
+static PyObject *ik(PyObject *self, PyObject *args) { return run(args, IK_ARGS, 8, 4, 1, ik_unit); }
+
+static PyObject *fk(PyObject *self, PyObject *args) { return run(args, FK_ARGS, 7, 4, 0, fk_unit); }
+
+static PyObject *pose(PyObject *self, PyObject *args) {
+    PyObject *table_obj, *y_obj, *yd_obj, *out[3];
+    Py_ssize_t n;
+    double *table, *y, *yd, *jac, *bias, *cond;
+    if (!PyArg_ParseTuple(args, "OnOOOOO", &table_obj, &n, &y_obj, &yd_obj, &out[0], &out[1], &out[2])) return NULL;
+    Buffers b = {.count = 0};
+    Py_ssize_t m = 0, rows = 0;
+    int bad = take(&b, y_obj, 0, 0, &m, n, "y", &y) != 0 || (rows = table_rows(&b, table_obj, m, m, &table)) < 0;
+    if (!bad && (rows != 1 || m > MAX_DOF)) {
+        PyErr_SetString(PyExc_ValueError, "pose: a table of one unit expected");
+        bad = 1;
+    }
+    if (!bad)
+        bad = take(&b, yd_obj, 0, n * m, NULL, n, "yd", &yd) != 0 ||
+              take(&b, out[0], 1, n * m * m, NULL, n, "jac", &jac) != 0 ||
+              take(&b, out[1], 1, n * m, NULL, n, "bias", &bias) != 0 ||
+              take(&b, out[2], 1, n, NULL, n, "cond", &cond) != 0;
+    if (!bad && (bias != NULL) != (yd != NULL)) {
+        PyErr_SetString(PyExc_ValueError, "pose: the bias needs yd");
+        bad = 1;
+    }
+    if (bad) {
         release(&b);
         return NULL;
     }
-    const double *table = b.table.buf;
-    Py_ssize_t rows = b.table.len / (ROW_WIDTH * sizeof(double));
-    long failed = -1;
-    for (Py_ssize_t r = 0; r < rows && failed < 0; ++r)
-        if (fk_row(table + r * ROW_WIDTH, b.in[0].buf, b.in[1].buf, b.in[2].buf, b.in[3].buf, b.out[0].buf,
-                   b.out[1].buf, b.out[2].buf) != 0)
-            failed = (long)r;
+    for (Py_ssize_t s = 0; s < n; ++s) {
+        Pose p;
+        unit_pose(table, y + s * m, yd != NULL ? yd + s * m : NULL, &p);
+        for (int i = 0; i < m; ++i) {
+            if (jac != NULL)
+                for (int k = 0; k < m; ++k) jac[s * m * m + m * i + k] = p.j[MAX_DOF * i + k];
+            if (bias != NULL) bias[s * m + i] = p.b[i];
+        }
+        if (cond != NULL) cond[s] = unit_condition(table, &p);
+    }
     release(&b);
-    return PyLong_FromLong(failed);
+    Py_RETURN_NONE;
 }
 
 static PyMethodDef methods[] = {
-    {"ik", ik, METH_VARARGS, "ik(table, q, v, tau, max_condition, l, ld, f) -> -1 or the row Python must map"},
-    {"fk", fk, METH_VARARGS, "fk(table, l, ld, f, q_guess, q, v, tau) -> -1 or the row Python must map"},
+    {"ik", ik, METH_VARARGS, "ik(table, n, q, v, a, tau, max_condition, l, ld, ldd, f, info) -> -1 or the first failure"},
+    {"fk", fk, METH_VARARGS, "fk(table, n, l, ld, f, q_guess, q, v, tau, info) -> -1 or the first failure"},
+    {"pose", pose, METH_VARARGS, "pose(table, n, y, yd, jac, bias, cond) -> None (a table of one unit)"},
     {NULL, NULL, 0, NULL},
 };
 
@@ -343,7 +570,8 @@ static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_compiled", NULL, -1
 
 PyMODINIT_FUNC PyInit__compiled(void) {
     PyObject *m = PyModule_Create(&module);
-    if (m != NULL && PyModule_AddIntConstant(m, "ROW_WIDTH", ROW_WIDTH) != 0) {
+    if (m == NULL) return NULL;
+    if (PyModule_AddIntConstant(m, "ROW_WIDTH", ROW_WIDTH) != 0 || PyModule_AddIntConstant(m, "MAX_DOF", MAX_DOF) != 0) {
         Py_DECREF(m);
         return NULL;
     }
