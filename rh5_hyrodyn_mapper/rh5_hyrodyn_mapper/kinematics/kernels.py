@@ -3,6 +3,16 @@
 A unit is one row of constants; a table is one row (a model's maps) or every unit of the robot (RobotMapper's). The
 three calls take N samples at once, so one sample is a batch of one through the same code. The extension is built
 with the package (``make venv``, setup.py): there is no other implementation to fall back to.
+
+* ``ik(table, n, q, v, a, tau, max_condition, l, ld, ldd, f, info)``: joints -> actuators (l, J v, J a + bias,
+  J^-T tau); every array C-contiguous float64 or None (but q and l; a needs v).
+* ``fk(table, n, l, ld, f, y_guess, y, yd, tau, info)``: actuators -> joints (closed form or Newton, J^-1 ld, J^T f).
+* ``pose(table, n, y, yd, jac, bias, cond)``: J (n, m, m), bias (n, m; needs yd), condition number (n) of a one-row
+  table, each where not None.
+
+ik and fk return -1, or sample * rows + row of the first unit that failed; given ``info`` (n, rows, 2) they map
+every sample and record each unit's status (ik: 0 or -1 refused; fk: Newton iterations, or a FK_* code) and detail
+(ik: condition number; fk: final residual [m]).
 """
 
 from __future__ import annotations
@@ -13,7 +23,7 @@ from typing import Final
 import numpy as np
 import numpy.typing as npt
 
-from . import _compiled
+from rh5_hyrodyn_mapper.kinematics._compiled import MAX_DOF, ROW_WIDTH, fk, ik, pose
 
 __all__ = [
     "FK_NOT_CONVERGED",
@@ -26,6 +36,7 @@ __all__ = [
     "KIND_SPRR",
     "KIND_SPU",
     "MAX_DOF",
+    "ROW_WIDTH",
     "fk",
     "ik",
     "pose",
@@ -35,8 +46,6 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 
-ROW_WIDTH: Final = int(_compiled.ROW_WIDTH)
-MAX_DOF: Final = int(_compiled.MAX_DOF)
 KIND_COPY: Final = 0
 KIND_RRPR: Final = 1
 KIND_SPU: Final = 2
@@ -46,19 +55,6 @@ FK_NOT_CONVERGED: Final = -1  # Newton did not reach the tolerance
 FK_WRONG_MODE: Final = -2  # Newton converged with det J of another sign than at the zero pose
 FK_UNREACHABLE: Final = -3  # a closed-form length outside the assemblable range
 FK_SINGULAR: Final = -4  # y found, but J(y) is singular: no joint rates
-
-
-ik = _compiled.ik
-"""ik(table, n, q, v, a, tau, max_condition, l, ld, ldd, f, info): joints -> actuators of n samples, each array
-C-contiguous float64 or None (but q and l; a needs v). -1, or sample * rows + row of the first refusal; ``info``
-(n, rows, 2) gets each unit's status (0 or -1) and condition number, and the call then maps every sample."""
-fk = _compiled.fk
-"""fk(table, n, l, ld, f, y_guess, y, yd, tau, info): actuators -> joints of n samples (None but l and y). -1, or
-sample * rows + row of the first failure; ``info`` (n, rows, 2) gets the status (iterations, or a FK_* code) and the
-final residual [m]."""
-pose = _compiled.pose
-"""pose(table, n, y, yd, jac, bias, cond): the Jacobian (n, m, m), bias (n, m; needs yd) and condition number (n)
-of a one-row table at n poses, each where not None."""
 
 
 def row(kind: int, dof: int, constants: Sequence[float], joint: int = 0, actuator: int = 0) -> list[float]:
