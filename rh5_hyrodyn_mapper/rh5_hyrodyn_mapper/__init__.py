@@ -33,31 +33,21 @@ if TYPE_CHECKING:
     from .tf_tree import KinematicTree
 
 _EXPORTS = {
-    **dict.fromkeys(
-        (
-            "DEFAULT_MAX_CONDITION",
-            "ActuatorSample",
-            "JointSample",
-            "LimitReport",
-            "RobotMapper",
-            "Violation",
-            "robot_mapper",
-        ),
-        "mapping",
-    ),
-    **dict.fromkeys(
-        (
-            "ForwardKinematicsError",
-            "KinematicsError",
-            "SingularityError",
-            "SubmechanismModel",
-            "build_submechanisms",
-            "submechanism_models",
-        ),
-        "kinematics",
-    ),
-    **dict.fromkeys(("MapperCore",), "mapper_core"),
-    **dict.fromkeys(("KinematicTree",), "tf_tree"),
+    "DEFAULT_MAX_CONDITION": "mapping",
+    "ActuatorSample": "mapping",
+    "JointSample": "mapping",
+    "LimitReport": "mapping",
+    "RobotMapper": "mapping",
+    "Violation": "mapping",
+    "robot_mapper": "mapping",
+    "ForwardKinematicsError": "kinematics",
+    "KinematicsError": "kinematics",
+    "SingularityError": "kinematics",
+    "SubmechanismModel": "kinematics",
+    "build_submechanisms": "kinematics",
+    "submechanism_models": "kinematics",
+    "MapperCore": "mapper_core",
+    "KinematicTree": "tf_tree",
 }
 __all__ = [
     "DEFAULT_MAX_CONDITION",

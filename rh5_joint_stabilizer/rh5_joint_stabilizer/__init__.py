@@ -16,36 +16,21 @@ if TYPE_CHECKING:
     from .reference import PlannedTrajectory, RampIn, ReferenceSample, TrajectoryRejectedError, validate_trajectory
 
 _EXPORTS = {
-    **dict.fromkeys(
-        (
-            "Command",
-            "Gains",
-            "Measurement",
-            "SafetyLimits",
-            "StabilizerCore",
-            "State",
-            "load_gains",
-        ),
-        "controller",
-    ),
-    **dict.fromkeys(
-        (
-            "PlannedTrajectory",
-            "RampIn",
-            "ReferenceSample",
-            "TrajectoryRejectedError",
-            "validate_trajectory",
-        ),
-        "reference",
-    ),
-    **dict.fromkeys(("AnkleBalanceCorrection",), "balance"),
-    **dict.fromkeys(
-        (
-            "GoalRejectedError",
-            "Tolerances",
-        ),
-        "goal_check",
-    ),
+    "Command": "controller",
+    "Gains": "controller",
+    "Measurement": "controller",
+    "SafetyLimits": "controller",
+    "StabilizerCore": "controller",
+    "State": "controller",
+    "load_gains": "controller",
+    "PlannedTrajectory": "reference",
+    "RampIn": "reference",
+    "ReferenceSample": "reference",
+    "TrajectoryRejectedError": "reference",
+    "validate_trajectory": "reference",
+    "AnkleBalanceCorrection": "balance",
+    "GoalRejectedError": "goal_check",
+    "Tolerances": "goal_check",
 }
 __all__ = [
     "AnkleBalanceCorrection",

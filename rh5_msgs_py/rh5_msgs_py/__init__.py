@@ -27,44 +27,24 @@ if TYPE_CHECKING:
     from .trajectory_file import TrajectoryData, TrajectoryFileError, load_trajectory, save_trajectory
 
 _EXPORTS = {
-    **dict.fromkeys(
-        (
-            "ACTUATOR_INDEX",
-            "ACTUATOR_NAMES",
-            "JOINT_INDEX",
-            "JOINT_NAMES",
-            "NUM_ACTUATORS",
-            "NUM_JOINTS",
-            "SUBMECHANISMS",
-            "Submechanism",
-        ),
-        "names",
-    ),
-    **dict.fromkeys(
-        (
-            "TrajectoryData",
-            "TrajectoryFileError",
-            "load_trajectory",
-            "save_trajectory",
-        ),
-        "trajectory_file",
-    ),
-    **dict.fromkeys(
-        (
-            "JointStateCodec",
-            "joint_state_from_msg",
-            "joint_state_to_msg",
-        ),
-        "conversions",
-    ),
-    **dict.fromkeys(
-        (
-            "DeadlineLoop",
-            "LatencyWindow",
-            "LatestValue",
-        ),
-        "realtime",
-    ),
+    "ACTUATOR_INDEX": "names",
+    "ACTUATOR_NAMES": "names",
+    "JOINT_INDEX": "names",
+    "JOINT_NAMES": "names",
+    "NUM_ACTUATORS": "names",
+    "NUM_JOINTS": "names",
+    "SUBMECHANISMS": "names",
+    "Submechanism": "names",
+    "TrajectoryData": "trajectory_file",
+    "TrajectoryFileError": "trajectory_file",
+    "load_trajectory": "trajectory_file",
+    "save_trajectory": "trajectory_file",
+    "JointStateCodec": "conversions",
+    "joint_state_from_msg": "conversions",
+    "joint_state_to_msg": "conversions",
+    "DeadlineLoop": "realtime",
+    "LatencyWindow": "realtime",
+    "LatestValue": "realtime",
 }
 __all__ = [
     "ACTUATOR_INDEX",
