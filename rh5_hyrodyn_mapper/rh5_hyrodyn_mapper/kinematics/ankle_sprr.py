@@ -72,7 +72,7 @@ class Ankle2SPRR1U(UniversalJointPlatform):
         self.crank_centres = frozen_array(centres)
         self.crank_axes = frozen_array(axes)
         self.crank_radii = frozen_array(radii)
-        self._legs = tuple(
+        self._legs = tuple(  # per leg: the shank pivot s, crank centre f0 and axis a0 at y = 0, the crank radius r
             (*self._canonical(s), *self._canonical(f), *self._canonical(a), float(r))
             for s, f, a, r in zip(shank, centres, axes, radii, strict=True)
         )
@@ -116,7 +116,3 @@ class Ankle2SPRR1U(UniversalJointPlatform):
             limits=limits,
             **newton,
         )
-
-    def _leg_constants(self) -> list[float]:
-        """Per leg: the shank pivot s, the crank centre f0 and axis a0 at y = 0, and the crank radius r."""
-        return [value for leg in self._legs for value in leg]

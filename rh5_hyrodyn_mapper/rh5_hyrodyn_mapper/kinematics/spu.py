@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import copy
 import math
-from abc import abstractmethod
 from collections.abc import Sequence
 from typing import Any
 
@@ -40,7 +39,7 @@ __all__ = ["Platform2SPU1U", "UniversalJointPlatform"]
 
 
 class UniversalJointPlatform(ImmutableModel):
-    """Base of the 2-DOF units on a 1U joint; subclasses give their legs' kernel constants (``_leg_constants``).
+    """Base of the 2-DOF units on a 1U joint; subclasses set ``_legs``, their legs' kernel constants, then ``_finish``.
 
     Forward kinematics: Newton on IK(y) = l, warm-started from ``y_guess`` or cold-started from J(0)^-1 (l - l0),
     steps clamped to ``max_step`` rad, converged when |IK(y) - l|_inf <= ``tolerance`` (m); it must end in the
@@ -110,16 +109,16 @@ class UniversalJointPlatform(ImmutableModel):
 
     # --- the kernel row and the error texts ------------------------------------------------------------------------
 
-    @abstractmethod
-    def _leg_constants(self) -> list[float]:
-        """Both legs' constants in the canonical frame (layout in ``_compiled.c``)."""
+    _legs: tuple[tuple[float, ...], ...]
+    """Per leg, its constants in the canonical frame as the kernel row lays them out (``_compiled.c``)."""
 
     def kernel_constants(self) -> tuple[int, list[float]]:
         """The kernel row: l0, J(0)^-1 (cold start), working mode, Newton settings, then the legs."""
         kind = kernels.KIND_SPU if self.kind == "2-SPU+1U" else kernels.KIND_SPRR
         newton = [self._mode, self.tolerance, float(self.max_iterations), self.max_step]
         jinv0 = np.linalg.inv(self.jacobian0).ravel().tolist()
-        return kind, [*self.l0.tolist(), *jinv0, *newton, *self._leg_constants()]
+        legs = [value for leg in self._legs for value in leg]
+        return kind, [*self.l0.tolist(), *jinv0, *newton, *legs]
 
     def _refusal(self, conditions: FloatArray, max_condition: float) -> str:
         worst = float(np.max(conditions))
@@ -172,9 +171,6 @@ class Platform2SPU1U(UniversalJointPlatform):
             raise ValueError(f"{name}: base_pivots and platform_pivots must have shape (2, 3)")
         self.base_pivots = frozen_array(base)
         self.platform_pivots = frozen_array(platform)
+        # per leg: the base U joint b and the platform S joint e0 at y = 0
         self._legs = tuple(self._canonical(b) + self._canonical(e) for b, e in zip(base, platform, strict=True))
         self._finish()
-
-    def _leg_constants(self) -> list[float]:
-        """Per leg: the base U joint b and the platform S joint e0 at y = 0."""
-        return [value for leg in self._legs for value in leg]
