@@ -1,6 +1,6 @@
-"""The C kernels (kinematics/_compiled.c) as the 1 kHz control cycle calls them, one whole-robot sample at a time:
-round trips over the whole joint range, the wrap of a warm start a turn away, every refusal with its unit's reason,
-and the argument checks of the C calls."""
+"""The C kernels (kinematics/unit_maps.c through _compiled.c) as the 1 kHz control cycle calls them, one whole-robot
+sample at a time: round trips over the whole joint range, the wrap of a warm start a turn away, every refusal with its
+unit's reason, and the argument checks of the C calls."""
 
 from __future__ import annotations
 

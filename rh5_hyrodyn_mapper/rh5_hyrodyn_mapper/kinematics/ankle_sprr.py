@@ -12,7 +12,7 @@ is the point of the crank circle closest to s_i (5.1). With f = R f_0, a = R a_0
 The crank turns relative to the foot, so freezing it (as the envelope theorem allows for J) is wrong at second
 order; the bias differentiates the scalar identities twice instead. Forward kinematics is Newton
 (UniversalJointPlatform), as in HyRoDyn; a closed form is impractical (up to 32 roots, 5.5). The maths runs in the
-C kernels (``_compiled.c``, kind SPRR); this model computes the legs' constants.
+C kernels (``unit_maps.c``, kind SPRR); this model computes the legs' constants.
 
 The crank centre f_i is the projection of the URDF rod end k_i onto the crank axis line, so the URDF zero pose is
 reproduced to the closest-point construction's accuracy (k_i in LLAnkle.urdf lies 2.5-7.8 um from the closest

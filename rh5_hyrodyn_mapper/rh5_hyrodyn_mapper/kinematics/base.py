@@ -108,7 +108,7 @@ class SubmechanismModel(ABC):
 
     @abstractmethod
     def kernel_constants(self) -> tuple[int, list[float]]:
-        """The unit's kernel kind and the constants of its row (layout in ``_compiled.c``)."""
+        """The unit's kernel kind and the constants of its row (layout in ``unit_maps.h``)."""
 
     @abstractmethod
     def _refusal(self, conditions: FloatArray, max_condition: float) -> str:

@@ -1,4 +1,4 @@
-"""The Python side of the C kernels (``_compiled.c``), where every submechanism's maths lives: table rows, the calls.
+"""The Python side of the C kernels (``unit_maps.c``, module ``_compiled``), where every submechanism's maths lives.
 
 A unit is one row of constants; a table is one row (a model's maps) or every unit of the robot (RobotMapper's). The
 three calls take N samples at once, so one sample is a batch of one through the same code. The extension is built
@@ -58,7 +58,7 @@ FK_SINGULAR: Final = -4  # y found, but J(y) is singular: no joint rates
 
 
 def row(kind: int, dof: int, constants: Sequence[float], joint: int = 0, actuator: int = 0) -> list[float]:
-    """One unit's row: kind, dof, first joint, first actuator, then its constants (layout in ``_compiled.c``)."""
+    """One unit's row: kind, dof, first joint, first actuator, then its constants (layout in ``unit_maps.h``)."""
     values = [float(kind), float(dof), float(joint), float(actuator), *(float(c) for c in constants)]
     if len(values) > ROW_WIDTH:
         raise ValueError(f"a unit row holds at most {ROW_WIDTH} values, got {len(values)}")

@@ -18,7 +18,7 @@ The singularity guard of ``forces`` uses the scale-free condition h_max / |J|, w
 arm the geometry can reach (for a planar lambda the shorter link); it grows without bound as the actuator line
 approaches O (theta -> 0 or pi).
 
-The maths runs in the C kernels (``_compiled.c``, kind RRPR); this model computes the constants from the geometry
+The maths runs in the C kernels (``unit_maps.c``, kind RRPR); this model computes the constants from the geometry
 and words the refusals.
 """
 

@@ -13,7 +13,7 @@ l = T y, J = T, bias = 0, y = T^-1 l, f = T^-T tau (HyRoDyn gives serial types t
   mapped through T: the smallest stroke box containing T(joint box), speed sum_j |T_ij| v_j, and force
   sum_j |(T^-1)_ji| tau_j (the actuator force that the joint torque limits can demand).
 
-The maps (T, T^-1, T^-T and T^T over the non-zero entries of each row) run in the C kernels (``_compiled.c``, kind
+The maps (T, T^-1, T^-T and T^T over the non-zero entries of each row) run in the C kernels (``unit_maps.c``, kind
 LINEAR), as every other unit's.
 """
 

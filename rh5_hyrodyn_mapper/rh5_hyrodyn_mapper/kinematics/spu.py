@@ -12,7 +12,7 @@ Bias (4.4): l_ddot_i = n_i . e_ddot_i + (|e_dot_i|^2 - (n_i . e_dot_i)^2) / l_i 
 
 ``UniversalJointPlatform`` holds what the SPU and the ankle's 2-SPRR+1U share: the U joint's canonical frame, the
 zero pose and working mode, and the Newton settings of the forward kinematics (HyRoDyn's approach) with its error
-texts. The maths itself (legs, Newton, the closed-form 2x2 statics) runs in the C kernels (``_compiled.c``).
+texts. The maths itself (legs, Newton, the closed-form 2x2 statics) runs in the C kernels (``unit_maps.c``).
 """
 
 from __future__ import annotations
@@ -110,7 +110,7 @@ class UniversalJointPlatform(ImmutableModel):
     # --- the kernel row and the error texts ------------------------------------------------------------------------
 
     _legs: tuple[tuple[float, ...], ...]
-    """Per leg, its constants in the canonical frame as the kernel row lays them out (``_compiled.c``)."""
+    """Per leg, its constants in the canonical frame as the kernel row lays them out (``unit_maps.h``)."""
 
     def kernel_constants(self) -> tuple[int, list[float]]:
         """The kernel row: l0, J(0)^-1 (cold start), working mode, Newton settings, then the legs."""
