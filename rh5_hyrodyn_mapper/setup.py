@@ -27,9 +27,15 @@ setup(
         *share_files("launch"),
         *share_files("config"),
     ],
-    # The control cycle's two mapping steps in C (kinematics/_compiled.c); the Python float paths stay the reference.
+    # Every submechanism's joint <-> actuator maths in C (kinematics/unit_maps.c, called through _compiled.c): one
+    # kernel for one sample (the 1 kHz control cycle) and for whole trajectories; required, no other implementation.
     ext_modules=[
-        Extension(f"{PACKAGE}.kinematics._compiled", [f"{PACKAGE}/kinematics/_compiled.c"], extra_compile_args=["-O2"])
+        Extension(
+            f"{PACKAGE}.kinematics._compiled",
+            [f"{PACKAGE}/kinematics/_compiled.c", f"{PACKAGE}/kinematics/unit_maps.c"],
+            depends=[f"{PACKAGE}/kinematics/unit_maps.h"],
+            extra_compile_args=["-O3"],
+        )
     ],
     install_requires=["setuptools"],
     zip_safe=False,

@@ -2,24 +2,23 @@
 
 The assembly is block diagonal (HyRoDyn's explicit loop-closure maps): every submechanism
 maps its own joints to its own actuators, and the rotary joints pass through unchanged.
-Every call takes one sample (shape (32,)) or a whole trajectory (shape (N, 32)) and works
-on all samples at once. Joint-space vectors are in names.JOINT_NAMES order, actuator-space
-vectors in names.ACTUATOR_NAMES order.
+Every call takes one sample (shape (32,)) or a whole trajectory (shape (N, 32)): one C call
+over the table of every unit (kinematics/kernels.py), so the 1 kHz cycle's sample is a batch
+of one through the same code. Joint-space vectors are in names.JOINT_NAMES order,
+actuator-space vectors in names.ACTUATOR_NAMES order.
 """
 
 from __future__ import annotations
 
 import functools
-import operator
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Final, NamedTuple
 
 import numpy as np
 
-from rh5_hyrodyn_mapper.kinematics import build_submechanisms
-from rh5_hyrodyn_mapper.kinematics.base import FloatArray, KinematicsError, SubmechanismModel
-from rh5_hyrodyn_mapper.kinematics.compiled import CompiledMaps
+from rh5_hyrodyn_mapper.kinematics import build_submechanisms, kernels
+from rh5_hyrodyn_mapper.kinematics.base import FloatArray, KinematicsError, SubmechanismModel, common_samples
 from rh5_msgs_py.names import ACTUATOR_INDEX, ACTUATOR_NAMES, JOINT_INDEX, NUM_ACTUATORS, NUM_JOINTS
 
 DEFAULT_MAX_CONDITION: Final = 1e6
@@ -97,24 +96,6 @@ def _contiguous(indices: list[int], what: str) -> slice:
     return slice(indices[0], indices[0] + len(indices))
 
 
-def _list_gather(sources: list[int]) -> Callable[[list[float]], list[float]] | None:
-    """out[i] = values[sources[i]] on Python lists; None for the identity (the lists are then used in place)."""
-    if sources == list(range(len(sources))):
-        return None
-    take = operator.itemgetter(*sources)
-    return lambda values: list(take(values))
-
-
-def _is_identity(model: SubmechanismModel) -> bool:
-    """A pass-through unit (rotary joint, unit-ratio transmission), recognised by what it computes."""
-    probe = np.linspace(-0.3, 0.4, model.dof)
-    return bool(
-        np.allclose(model.inverse(probe), probe, rtol=0, atol=1e-15)
-        and np.allclose(model.jacobian(probe), np.eye(model.dof), rtol=0, atol=1e-15)
-        and np.allclose(model.bias(probe, probe), 0.0, rtol=0, atol=1e-15)
-    )
-
-
 class RobotMapper:
     """The whole-robot joint <-> actuator map; immutable, built once from the submechanism models."""
 
@@ -123,44 +104,18 @@ class RobotMapper:
     ) -> None:
         self.submechanisms = build_submechanisms() if submechanisms is None else submechanisms
         self.max_condition = max_condition
-        blocks, identity_joints, identity_actuators = [], [], []
+        blocks = []
         covered: list[int] = []
         for model in self.submechanisms:
             joints = [JOINT_INDEX[j] for j in model.joints]
             actuators = [ACTUATOR_INDEX[a] for a in model.actuators]
             covered.extend(joints)
-            if _is_identity(model):
-                identity_joints.extend(joints)
-                identity_actuators.extend(actuators)
-            else:
-                blocks.append(_Block(model, _contiguous(joints, model.name), _contiguous(actuators, model.name)))
-        self._blocks = tuple(blocks)
-        self._identity_joints = np.array(identity_joints, dtype=np.intp)
-        self._identity_actuators = np.array(identity_actuators, dtype=np.intp)
+            blocks.append(_Block(model, _contiguous(joints, model.name), _contiguous(actuators, model.name)))
         if sorted(covered) != list(range(NUM_JOINTS)):
             msg = "the submechanisms do not cover every joint exactly once"
             raise ValueError(msg)
-        # Single-sample path on Python lists: each block's fused float map; the pass-through values are gathered
-        # once (index maps actuator <- joint and joint <- actuator). Block entries map to their own block's entries,
-        # so on RH5 (same order on both sides) both maps are the identity and the input lists become the outputs.
-        self._single_blocks = tuple(
-            (b.model.to_actuator_space_floats, b.model.to_joint_space_floats, b.joints, b.actuators) for b in blocks
-        )
-        actuator_sources, joint_sources = list(range(NUM_ACTUATORS)), list(range(NUM_JOINTS))
-        for joint, actuator in zip(identity_joints, identity_actuators, strict=True):
-            actuator_sources[actuator], joint_sources[joint] = joint, actuator
-        for b in blocks:  # their entries are overwritten by the block's results
-            for joint, actuator in zip(
-                range(b.joints.start, b.joints.stop), range(b.actuators.start, b.actuators.stop), strict=True
-            ):
-                actuator_sources[actuator], joint_sources[joint] = joint, actuator
-        self._actuators_from_joints = _list_gather(actuator_sources)
-        self._joints_from_actuators = _list_gather(joint_sources)
-        # The control cycle's calls in C (None without the built extension): the float path is the fallback.
-        self._compiled = CompiledMaps.build(
-            [(b.model, b.joints.start, b.actuators.start) for b in blocks],
-            list(zip(identity_joints, identity_actuators, strict=True)),
-        )
+        self._blocks = tuple(blocks)
+        self._table = kernels.table([b.model.kernel_row(b.joints.start, b.actuators.start) for b in blocks])
         limits = {name: np.zeros(NUM_ACTUATORS) for name in ("length_min", "length_max", "velocity_max", "force_max")}
         for model in self.submechanisms:
             idx = [ACTUATOR_INDEX[a] for a in model.actuators]
@@ -177,7 +132,7 @@ class RobotMapper:
     def _shaped(values: FloatArray | None, what: str, size: int) -> FloatArray | None:
         if values is None:
             return None
-        out = np.asarray(values, dtype=np.float64)
+        out = np.ascontiguousarray(values, dtype=np.float64)  # as the kernels read it
         shape = out.shape
         if not shape or shape[-1] != size:
             msg = f"{what}: expected {size} values per sample, got shape {out.shape}"
@@ -204,80 +159,21 @@ class RobotMapper:
         if a is not None and v is None:
             msg = "accelerations need velocities (the bias term J-dot q-dot depends on them)"
             raise ValueError(msg)
-        if q.ndim == 1 and (v is None or v.ndim == 1) and (a is None or a.ndim == 1) and (tau is None or tau.ndim == 1):
-            return self._to_actuators_single(q, v, a, tau)
-        inputs = (q, v, a, tau)
-        outputs = tuple(None if x is None else np.empty(q.shape) for x in inputs)
-        for out, src in zip(outputs, inputs, strict=True):
-            if out is not None:
-                out[..., self._identity_actuators] = src[..., self._identity_joints]
-        l, ld, ldd, f = outputs
-        for block in self._blocks:
-            jj = block.joints
-            results = block.model.to_actuator_space(
-                q[..., jj],
-                None if v is None else v[..., jj],
-                None if a is None else a[..., jj],
-                None if tau is None else tau[..., jj],
-                self.max_condition,
-            )
-            for out, result in zip(outputs, results, strict=True):
-                if out is not None:
-                    out[..., block.actuators] = result
+        shape = q.shape
+        if (
+            (v is not None and v.shape != shape)
+            or (a is not None and a.shape != shape)
+            or (tau is not None and tau.shape != shape)
+        ):
+            shape, _, (q, v, a, tau) = common_samples((q, v, a, tau))
+        n = q.size // NUM_JOINTS
+        l = np.empty(shape)
+        ld = None if v is None else np.empty(shape)
+        ldd = None if a is None else np.empty(shape)
+        f = None if tau is None else np.empty(shape)
+        if n and kernels.ik(self._table, n, q, v, a, tau, self.max_condition, l, ld, ldd, f, None) >= 0:
+            self._explain((q, v, a, tau), "ik")
         return ActuatorSample(l, ld, ldd, f)
-
-    def _to_actuators_single(
-        self, q: FloatArray, v: FloatArray | None, a: FloatArray | None, tau: FloatArray | None
-    ) -> ActuatorSample:
-        """``to_actuators`` for one sample (every input of shape (32,)): in C for the cycle's call (q, v, tau),
-        else (or when a unit refuses: Python gives the reason) on Python lists, one array per output."""
-        max_condition = self.max_condition
-        if self._compiled is not None and v is not None and tau is not None and a is None:
-            mapped = self._compiled.to_actuators(q, v, tau, max_condition)
-            if mapped is not None:
-                return ActuatorSample(mapped[0], mapped[1], None, mapped[2])
-        qs = q.tolist()
-        vs = None if v is None else v.tolist()
-        acc = None if a is None else a.tolist()
-        ts = None if tau is None else tau.tolist()
-        gather = self._actuators_from_joints
-        if gather is None:  # outputs overwrite the inputs' lists block by block (each block reads its slice first)
-            l, ld, ldd, f = qs, vs, acc, ts
-        else:
-            l = gather(qs)
-            ld = None if vs is None else gather(vs)
-            ldd = None if acc is None else gather(acc)
-            f = None if ts is None else gather(ts)
-        blocks = self._single_blocks
-        if vs is not None and ts is not None:  # the common calls: (q, v, tau) and (q, v, a, tau)
-            if acc is None:
-                for fused, _, jj, aa in blocks:
-                    l[aa], ld[aa], _, f[aa] = fused(qs[jj], vs[jj], None, ts[jj], max_condition)
-            else:
-                for fused, _, jj, aa in blocks:
-                    l[aa], ld[aa], ldd[aa], f[aa] = fused(qs[jj], vs[jj], acc[jj], ts[jj], max_condition)
-        else:
-            for fused, _, jj, aa in blocks:
-                rl, rld, rldd, rf = fused(
-                    qs[jj],
-                    None if vs is None else vs[jj],
-                    None if acc is None else acc[jj],
-                    None if ts is None else ts[jj],
-                    max_condition,
-                )
-                l[aa] = rl
-                if ld is not None:
-                    ld[aa] = rld
-                    if ldd is not None:
-                        ldd[aa] = rldd
-                if f is not None:
-                    f[aa] = rf
-        return ActuatorSample(
-            _vector(l, NUM_ACTUATORS),
-            _vector(ld, NUM_ACTUATORS),
-            _vector(ldd, NUM_ACTUATORS),
-            _vector(f, NUM_ACTUATORS),
-        )
 
     def to_joints(
         self,
@@ -296,70 +192,34 @@ class RobotMapper:
         ld = None if ld is None else shaped(ld, "ld", NUM_ACTUATORS)
         f = None if f is None else shaped(f, "f", NUM_ACTUATORS)
         q_guess = None if q_guess is None else shaped(q_guess, "q_guess", NUM_JOINTS)
+        shape = l.shape
         if (
-            l.ndim == 1
-            and (ld is None or ld.ndim == 1)
-            and (f is None or f.ndim == 1)
-            and (q_guess is None or q_guess.ndim == 1)
+            (ld is not None and ld.shape != shape)
+            or (f is not None and f.shape != shape)
+            or (q_guess is not None and q_guess.shape != shape)
         ):
-            return self._to_joints_single(l, ld, f, q_guess)
-        inputs = (l, ld, f)
-        outputs = tuple(None if x is None else np.empty(l.shape) for x in inputs)
-        for out, src in zip(outputs, inputs, strict=True):
-            if out is not None:
-                out[..., self._identity_joints] = src[..., self._identity_actuators]
-        for block in self._blocks:
-            aa = block.actuators
-            results = block.model.to_joint_space(
-                l[..., aa],
-                None if ld is None else ld[..., aa],
-                None if f is None else f[..., aa],
-                None if q_guess is None else q_guess[..., block.joints],
-            )
-            for out, result in zip(outputs, results, strict=True):
-                if out is not None:
-                    out[..., block.joints] = result
-        q, v, tau = outputs
+            shape, _, (l, ld, f, q_guess) = common_samples((l, ld, f, q_guess))
+        n = l.size // NUM_ACTUATORS
+        q = np.empty(shape)
+        v = None if ld is None else np.empty(shape)
+        tau = None if f is None else np.empty(shape)
+        if n and kernels.fk(self._table, n, l, ld, f, q_guess, q, v, tau, None) >= 0:
+            self._explain((l, ld, f, q_guess), "fk")
         return JointSample(q, v, None, tau)
 
-    def _to_joints_single(
-        self, l: FloatArray, ld: FloatArray | None, f: FloatArray | None, q_guess: FloatArray | None
-    ) -> JointSample:
-        """``to_joints`` for one sample (every input of shape (32,)): in C for the cycle's call (l, l_dot, f and a
-        warm start), else (or when a unit refuses) on Python lists, one array per output."""
-        if self._compiled is not None and ld is not None and f is not None and q_guess is not None:
-            mapped = self._compiled.to_joints(l, ld, f, q_guess)
-            if mapped is not None:
-                return JointSample(mapped[0], mapped[1], None, mapped[2])
-        ls = l.tolist()
-        lds = None if ld is None else ld.tolist()
-        fs = None if f is None else f.tolist()
-        guess = None if q_guess is None else q_guess.tolist()
-        gather = self._joints_from_actuators
-        if gather is None:  # outputs overwrite the inputs' lists block by block (each block reads its slice first)
-            q, v, tau = ls, lds, fs
-        else:
-            q = gather(ls)
-            v = None if lds is None else gather(lds)
-            tau = None if fs is None else gather(fs)
-        blocks = self._single_blocks
-        if lds is not None and fs is not None and guess is not None:  # the node's call
-            for _, fused, jj, aa in blocks:
-                q[jj], v[jj], tau[jj] = fused(ls[aa], lds[aa], fs[aa], guess[jj])
-        else:
-            for _, fused, jj, aa in blocks:
-                rq, rv, rtau = fused(
-                    ls[aa],
-                    None if lds is None else lds[aa],
-                    None if fs is None else fs[aa],
-                    None if guess is None else guess[jj],
-                )
-                q[jj] = rq
-                if v is not None:
-                    v[jj] = rv
-                if tau is not None:
-                    tau[jj] = rtau
-        return JointSample(_vector(q, NUM_JOINTS), _vector(v, NUM_JOINTS), None, _vector(tau, NUM_JOINTS))
+    def _explain(self, inputs: Sequence[FloatArray | None], direction: str) -> None:
+        """Raise the failing unit's own error: its model maps its slice of the inputs again and says why."""
+        for block in self._blocks:
+            jj, aa = block.joints, block.actuators
+            if direction == "ik":
+                slices = [None if x is None else x[..., jj] for x in inputs]
+                block.model.to_actuator_space(*slices, self.max_condition)
+            else:
+                slices = [None if x is None else x[..., aa] for x in inputs[:3]]
+                guess = inputs[3]
+                block.model.to_joint_space(*slices, None if guess is None else guess[..., jj])
+        msg = f"the mapper's {direction} kernel refused a sample that no unit refuses alone"
+        raise KinematicsError(msg)
 
     def limit_report(self, actuators: ActuatorSample) -> LimitReport:
         """Stroke, velocity and force utilisation of every actuator at every sample, and every violation."""
@@ -409,16 +269,6 @@ class RobotMapper:
             clamped |= f_clamped != f
             f = f_clamped
         return ActuatorSample(l, ld, actuators.acceleration, f), clamped
-
-
-def _vector(values: Sequence[float] | None, size: int) -> FloatArray | None:
-    """The float64 array of one sample's list (None stays None); a block that returned a wrong count shows here."""
-    if values is None:
-        return None
-    if len(values) != size:
-        msg = f"a submechanism returned a wrong number of values ({len(values)} instead of {size} in all)"
-        raise ValueError(msg)
-    return np.array(values, dtype=np.float64)
 
 
 @functools.cache

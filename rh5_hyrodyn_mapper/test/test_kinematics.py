@@ -170,20 +170,12 @@ def test_round_trip_joints_cold_start(name: str) -> None:
 
 
 @pytest.mark.parametrize("name", TWO_DOF)
-def test_single_sample_path_matches_vectorised(name: str) -> None:
+def test_single_sample_and_any_leading_shape(name: str) -> None:
     model = models()[name]
     y, l, _ = feasible(name)
-    yd = np.random.default_rng(3).uniform(-3, 3, size=y[:50].shape)
-    lengths, jac, bias = model.inverse(y[:50]), model.jacobian(y[:50]), model.bias(y[:50], yd)
-    y_batch = model.forward(l[:50])
-    for k in range(50):
-        np.testing.assert_allclose(model.inverse(y[k]), lengths[k], rtol=0, atol=1e-15)
-        np.testing.assert_allclose(model.jacobian(y[k]), jac[k], rtol=0, atol=1e-15)
-        np.testing.assert_allclose(model.bias(y[k], yd[k]), bias[k], rtol=1e-12, atol=1e-14)
-        y_single, iterations = model.forward_with_info(l[k])
-        assert isinstance(iterations, int)
-        np.testing.assert_allclose(y_single, y_batch[k], rtol=0, atol=1e-11)
-    # any leading shape
+    y_single, iterations = model.forward_with_info(l[0])  # one sample: an int count, shape (m,)
+    assert isinstance(iterations, int)
+    np.testing.assert_allclose(y_single, y[0], rtol=0, atol=1e-11)
     shaped = y[:24].reshape(2, 3, 4, model.dof)
     assert model.inverse(shaped).shape == (2, 3, 4, 2)
     assert model.jacobian(shaped).shape == (2, 3, 4, 2, 2)
@@ -662,12 +654,7 @@ def test_fused_to_actuator_space_equals_separate_methods(name: str, combo: tuple
     yd, ydd, tau = (x if given else None for x, given in zip((yd, ydd, tau), combo, strict=True))
     batch = model.to_actuator_space(y, yd, ydd, tau)
     _check_actuator_space(model, (y, yd, ydd, tau), batch)
-    composed = SubmechanismModel.to_actuator_space(model, y, yd, ydd, tau)  # the base class's composition
-    for got, want in zip(batch, composed, strict=True):
-        assert (got is None) == (want is None)
-        if want is not None:
-            np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-13 * max(1.0, float(np.max(np.abs(want)))))
-    for k in range(0, len(y), 20):  # single samples (Python floats), arrays and the float API
+    for k in range(0, len(y), 20):  # single samples: a batch of one
         pick = [None if x is None else x[k] for x in (yd, ydd, tau)]
         single = model.to_actuator_space(y[k], *pick)
         _check_actuator_space(model, (y[k], *pick), single)
@@ -676,15 +663,6 @@ def test_fused_to_actuator_space_equals_separate_methods(name: str, combo: tuple
                 assert isinstance(got, np.ndarray)
                 assert got.shape == (model.dof,)
                 np.testing.assert_allclose(got, want[k], rtol=1e-12, atol=1e-14 * max(1.0, float(np.max(np.abs(want)))))
-        floats = model.to_actuator_space_floats(y[k].tolist(), *(None if x is None else x.tolist() for x in pick))
-        for got, want in zip(floats, single, strict=True):
-            assert (got is None) == (want is None)
-            if want is not None:
-                assert all(type(x) is float for x in got)
-                np.testing.assert_array_equal(np.array(got), want)
-        base_floats = SubmechanismModel.to_actuator_space_floats(model, y[k].tolist(), *pick)  # default adapter
-        for got, want in zip(base_floats, single, strict=True):
-            np.testing.assert_array_equal(np.array(got, dtype=float), np.array(want, dtype=float))
 
 
 @pytest.mark.parametrize("name", FUSED)
@@ -696,10 +674,10 @@ def test_fused_to_actuator_space_any_leading_shape(name: str) -> None:
     for a, b in zip(got, flat, strict=True):
         assert a.shape == shape
         np.testing.assert_array_equal(a.reshape(b.shape), b)
-    # one velocity for every pose broadcasts like the separate methods
-    composed = SubmechanismModel.to_actuator_space(model, y, yd[0], ydd[0], tau)
-    for a, b in zip(model.to_actuator_space(y, yd[0], ydd[0], tau), composed, strict=True):
-        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)
+    # one velocity for every pose broadcasts as if given for each
+    every = model.to_actuator_space(y, np.broadcast_to(yd[0], y.shape), np.broadcast_to(ydd[0], y.shape), tau)
+    for a, b in zip(model.to_actuator_space(y, yd[0], ydd[0], tau), every, strict=True):
+        np.testing.assert_array_equal(a, b)
     with pytest.raises(KinematicsError, match=name):
         model.to_actuator_space(np.zeros((3, model.dof + 1)))
 
@@ -729,22 +707,11 @@ def test_fused_to_joint_space_equals_separate_methods(name: str, combo: tuple[bo
     for guess in (None, y + 1e-3):  # cold and warm start
         batch = model.to_joint_space(l, ld, f, guess)
         _check_joint_space(model, (l, ld, f, guess), batch)
-        composed = SubmechanismModel.to_joint_space(model, l, ld, f, guess)
-        for got, want in zip(batch, composed, strict=True):
-            assert (got is None) == (want is None)
-            if want is not None:
-                np.testing.assert_allclose(got, want, rtol=1e-11, atol=1e-12 * max(1.0, float(np.max(np.abs(want)))))
         for k in range(0, len(y), 20):
             pick = [None if x is None else x[k] for x in (ld, f, guess)]
             single = model.to_joint_space(l[k], *pick)
             _check_joint_space(model, (l[k], *pick), single)
             np.testing.assert_allclose(single[0], y[k], rtol=0, atol=1e-9)
-            floats = model.to_joint_space_floats(l[k].tolist(), *(None if x is None else x.tolist() for x in pick))
-            for got, want in zip(floats, single, strict=True):
-                assert (got is None) == (want is None)
-                if want is not None:
-                    assert all(type(x) is float for x in got)
-                    np.testing.assert_array_equal(np.array(got), want)
 
 
 @pytest.mark.parametrize("name", TWO_DOF)
@@ -772,9 +739,6 @@ def test_fused_singularity_refusal_two_dof(name: str) -> None:
     with pytest.raises(SingularityError) as fused:
         model.to_actuator_space(y_singular, yd, yd, tau)
     assert str(fused.value) == str(separate.value)
-    with pytest.raises(SingularityError) as floats:
-        model.to_actuator_space_floats(y_singular.tolist(), None, None, tau.tolist())
-    assert str(floats.value) == str(separate.value)
     poses, taus = np.stack([np.zeros(2), y_singular]), np.stack([tau, tau])
     with pytest.raises(SingularityError) as separate_batch:
         model.forces(poses, taus)
@@ -799,7 +763,7 @@ def test_fused_singularity_refusal_lambda(name: str) -> None:
             model.forces(y_singular, np.array([100.0]))
         for call in (
             lambda y=y_singular: model.to_actuator_space(y, tau=np.array([100.0])),
-            lambda y=y_singular: model.to_actuator_space_floats(y.tolist(), [1.0], [0.0], [100.0]),
+            lambda y=y_singular: model.to_actuator_space(y, np.array([1.0]), np.array([0.0]), np.array([100.0])),
         ):
             with pytest.raises(SingularityError) as fused:
                 call()
@@ -819,7 +783,6 @@ def test_fused_linear_refusal_and_errors() -> None:
     for call in (
         lambda: head.to_actuator_space(np.zeros(3), tau=np.ones(3), max_condition=1.2),
         lambda: head.to_actuator_space(np.zeros((4, 3)), tau=np.ones((4, 3)), max_condition=1.2),
-        lambda: head.to_actuator_space_floats([0.0] * 3, None, None, [1.0] * 3, 1.2),
     ):
         with pytest.raises(SingularityError) as fused:
             call()
@@ -833,19 +796,15 @@ def test_fused_forward_errors(name: str) -> None:
     bad = np.full(model.dof, 0.9)
     with pytest.raises(ForwardKinematicsError) as separate:
         model.forward(bad)
-    for call in (
-        lambda: model.to_joint_space(bad, bad, bad),
-        lambda: model.to_joint_space_floats(bad.tolist(), bad.tolist(), bad.tolist()),
-    ):
-        with pytest.raises(ForwardKinematicsError) as fused:
-            call()
-        assert str(fused.value) == str(separate.value)
+    with pytest.raises(ForwardKinematicsError) as fused:
+        model.to_joint_space(bad, bad, bad)
+    assert str(fused.value) == str(separate.value)
     with pytest.raises(ForwardKinematicsError, match=r"1 of 2 sample"):
         model.to_joint_space(np.stack([model.l0, bad]), np.zeros((2, model.dof)))
 
 
-def test_mapper_single_sample_path_is_the_models_fused_maps() -> None:
-    """RobotMapper's list-based single-sample path gives each block's fused answer, also through the gather path."""
+def test_mapper_is_the_models_maps() -> None:
+    """RobotMapper's whole-robot table gives each unit's own answer, one sample or a batch."""
     from rh5_hyrodyn_mapper.mapping import RobotMapper
     from rh5_msgs_py.names import ACTUATOR_INDEX, NUM_JOINTS
 
@@ -855,31 +814,27 @@ def test_mapper_single_sample_path_is_the_models_fused_maps() -> None:
     v, a, tau = rng.normal(size=q.shape), rng.normal(size=q.shape), rng.normal(scale=20.0, size=q.shape)
     batch = mapper.to_actuators(q, v, a, tau)
     back_batch = mapper.to_joints(batch.position, batch.velocity, batch.effort, q_guess=q)
-    for gathered in (False, True):
-        if gathered:  # the general path for joint and actuator orders that differ (RH5's coincide)
-            mapper._actuators_from_joints = list  # a copy, as a permutation gives
-            mapper._joints_from_actuators = list
-        for k in range(len(q)):
-            single = mapper.to_actuators(q[k], v[k], a[k], tau[k])
-            back = mapper.to_joints(single.position, single.velocity, single.effort, q_guess=q[k])
-            for model in build_submechanisms():
-                jj = [JOINT_INDEX[j] for j in model.joints]
-                aa = [ACTUATOR_INDEX[x] for x in model.actuators]
-                fused = model.to_actuator_space(q[k, jj], v[k, jj], a[k, jj], tau[k, jj])
-                for got, want in zip(single, fused, strict=True):
-                    np.testing.assert_array_equal(got[aa], want)
-                joints = model.to_joint_space(single.position[aa], single.velocity[aa], single.effort[aa], q[k, jj])
-                for got, want in zip((back.position, back.velocity, back.effort), joints, strict=True):
-                    np.testing.assert_array_equal(got[jj], want)
-            for got, want in zip(single, batch, strict=True):
+    for k in range(len(q)):
+        single = mapper.to_actuators(q[k], v[k], a[k], tau[k])
+        back = mapper.to_joints(single.position, single.velocity, single.effort, q_guess=q[k])
+        for model in build_submechanisms():
+            jj = [JOINT_INDEX[j] for j in model.joints]
+            aa = [ACTUATOR_INDEX[x] for x in model.actuators]
+            fused = model.to_actuator_space(q[k, jj], v[k, jj], a[k, jj], tau[k, jj])
+            for got, want in zip(single, fused, strict=True):
+                np.testing.assert_array_equal(got[aa], want)
+            joints = model.to_joint_space(single.position[aa], single.velocity[aa], single.effort[aa], q[k, jj])
+            for got, want in zip((back.position, back.velocity, back.effort), joints, strict=True):
+                np.testing.assert_array_equal(got[jj], want)
+        for got, want in zip(single, batch, strict=True):
+            np.testing.assert_allclose(got, want[k], rtol=1e-12, atol=1e-12)
+        for got, want in zip(back, back_batch, strict=True):
+            if want is not None:
                 np.testing.assert_allclose(got, want[k], rtol=1e-12, atol=1e-12)
-            for got, want in zip(back, back_batch, strict=True):
-                if want is not None:
-                    np.testing.assert_allclose(got, want[k], rtol=1e-12, atol=1e-12)
-            partial = mapper.to_actuators(q[k], tau=tau[k])
-            assert partial.velocity is None
-            assert partial.acceleration is None
-            np.testing.assert_array_equal(partial.effort, single.effort)
-            cold = mapper.to_joints(single.position, f=single.effort)
-            assert cold.velocity is None
-            np.testing.assert_allclose(cold.position, q[k], rtol=0, atol=1e-9)
+        partial = mapper.to_actuators(q[k], tau=tau[k])
+        assert partial.velocity is None
+        assert partial.acceleration is None
+        np.testing.assert_array_equal(partial.effort, single.effort)
+        cold = mapper.to_joints(single.position, f=single.effort)
+        assert cold.velocity is None
+        np.testing.assert_allclose(cold.position, q[k], rtol=0, atol=1e-9)

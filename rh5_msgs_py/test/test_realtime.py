@@ -285,9 +285,10 @@ def test_keep_cpus_awake_refused_says_why_and_the_grant_still_runs(monkeypatch: 
     from pathlib import Path
 
     from rh5_msgs_py import realtime
+    from rh5_msgs_py.realtime import scheduling  # where keep_cpus_awake keeps its request
 
-    monkeypatch.setattr(realtime, "CPU_DMA_LATENCY", Path("/nonexistent/cpu_dma_latency"))
-    monkeypatch.setattr(realtime, "_idle_request", None)
+    monkeypatch.setattr(scheduling, "CPU_DMA_LATENCY", Path("/nonexistent/cpu_dma_latency"))
+    monkeypatch.setattr(scheduling, "_idle_request", None)
     reason = realtime.keep_cpus_awake()
     assert reason == "/nonexistent/cpu_dma_latency: No such file or directory"
     grant = realtime.RealtimeGrant(50, 50, True, idle_wakeup=reason)

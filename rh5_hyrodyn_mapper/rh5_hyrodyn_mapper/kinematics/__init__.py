@@ -8,6 +8,9 @@ order and with its name, kind, joints and actuators:
 * ``2-SPU+1U`` (torso pitch/roll, wrists): :class:`Platform2SPU1U`, closed-form IK, Newton FK;
 * ``transmission`` (head) and ``serial`` (every other joint): :class:`LinearTransmission` / :class:`SerialJoint`.
 
+Each model holds its constants as one row of the C kernels (``kernels.py``, ``unit_maps.c``), where the maths of
+every kind lives once: a model's maps, RobotMapper's whole-robot maps and the 1 kHz single sample all run there.
+
 The parallel units take their geometry from ``geometry.yaml`` (public RH5 submechanism files, cited there) and their
 actuator limits from the paper's actuator table; the linear ones take the robot model's joint limits.
 """

@@ -5,8 +5,9 @@ Names resolve lazily, so ``from rh5_hyrodyn_mapper.model.urdf import generate_ur
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from rh5_msgs_py.lazy_exports import lazy_exports
 
 if TYPE_CHECKING:
     from .robot import (
@@ -53,11 +54,4 @@ __all__ = [
 ]
 assert sorted(__all__) == sorted(_EXPORTS)
 
-
-def __getattr__(name: str) -> Any:
-    """Import the submodule that defines ``name`` on first use (PEP 562)."""
-    if name not in _EXPORTS:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
-    globals()[name] = value
-    return value
+__getattr__ = lazy_exports(__name__, _EXPORTS)
