@@ -28,7 +28,7 @@ INTERFACES := $(wildcard interfaces/*/CMakeLists.txt interfaces/*/package.xml in
 
 # The stamp depends on everything that decides what is installed, so an edited lock re-installs.
 # tools/build_interfaces.py then builds the interface packages no wheel provides (interfaces/README.md).
-$(STAMP): constraints.txt requirements.txt tools/build_interfaces.py $(INTERFACES) $(foreach p,$(PACKAGES),$(p)/setup.py $(p)/package.xml) $(wildcard */*/*/*.c */*/*/*/*.c)
+$(STAMP): constraints.txt requirements.txt tools/build_interfaces.py $(INTERFACES) $(foreach p,$(PACKAGES),$(p)/setup.py $(p)/package.xml) $(wildcard */*/*/*.c */*/*/*/*.c */*/*/*.h */*/*/*/*.h)
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	@touch $(VENV)/COLCON_IGNORE  # keep colcon from crawling the venv's share/*/package.xml
 	$(PY) -m pip install --quiet --disable-pip-version-check -c constraints.txt -r requirements.txt
