@@ -173,7 +173,7 @@ def test_setpoints_beyond_the_stroke_are_clamped_and_counted(driver: DriverLoop)
     started = time.monotonic_ns()
     time.sleep(1.5)
     t, _, measured = driver.history()
-    limit = LIMITS.position_max[knee]
+    limit = LIMITS.length_max[knee]
     assert measured[:, knee].max() <= limit + 1e-6
     assert measured[-1, knee] == pytest.approx(limit, abs=1e-3)
     assert driver.core.clamped["LRKnee_Act1"] >= int(np.sum(t > started + 2_000_000))  # every cycle since

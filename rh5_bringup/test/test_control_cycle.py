@@ -247,7 +247,7 @@ def test_nan_and_out_of_limit_setpoints_never_reach_the_wire(
     for commands in seen:
         efforts = np.array([c.effort_ff for c in commands])
         assert np.isfinite(efforts).all()
-        assert (np.abs(efforts) <= LIMITS.effort_max * (1 + 1e-6)).all(), rule
+        assert (np.abs(efforts) <= LIMITS.force_max * (1 + 1e-6)).all(), rule
     if rule == "non-finite":
         assert rig.cycle.mapper.rejected["joint_commands"] >= 3
         assert _modes(seen[-1]) == {CommandMode.HOLD}

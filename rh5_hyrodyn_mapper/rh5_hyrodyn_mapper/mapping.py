@@ -18,7 +18,13 @@ from typing import Final, NamedTuple
 import numpy as np
 
 from rh5_hyrodyn_mapper.kinematics import build_submechanisms, kernels
-from rh5_hyrodyn_mapper.kinematics.base import FloatArray, KinematicsError, SubmechanismModel, common_samples
+from rh5_hyrodyn_mapper.kinematics.base import (
+    FloatArray,
+    KinematicsError,
+    SubmechanismModel,
+    actuator_limits,
+    common_samples,
+)
 from rh5_msgs_py.names import ACTUATOR_INDEX, ACTUATOR_NAMES, JOINT_INDEX, NUM_ACTUATORS, NUM_JOINTS
 
 DEFAULT_MAX_CONDITION: Final = 1e6
@@ -121,12 +127,8 @@ class RobotMapper:
             idx = [ACTUATOR_INDEX[a] for a in model.actuators]
             for name, values in limits.items():
                 values[idx] = getattr(model.limits, name)
-        for values in limits.values():
-            values.setflags(write=False)
-        self.length_min = limits["length_min"]
-        self.length_max = limits["length_max"]
-        self.velocity_max = limits["velocity_max"]
-        self.force_max = limits["force_max"]
+        self.limits = actuator_limits(**limits)
+        """Every actuator's stroke, speed and force limits (ACTUATOR_NAMES order), from its submechanism."""
 
     @staticmethod
     def _shaped(values: FloatArray | None, what: str, size: int) -> FloatArray | None:
@@ -223,25 +225,26 @@ class RobotMapper:
 
     def limit_report(self, actuators: ActuatorSample) -> LimitReport:
         """Stroke, velocity and force utilisation of every actuator at every sample, and every violation."""
+        lim = self.limits
         l = np.atleast_2d(actuators.position)
         n = l.shape[0]
-        half = 0.5 * (self.length_max - self.length_min)
-        stroke = np.abs(l - 0.5 * (self.length_max + self.length_min)) / half
+        half = 0.5 * (lim.length_max - lim.length_min)
+        stroke = np.abs(l - 0.5 * (lim.length_max + lim.length_min)) / half
         velocity = (
             np.zeros((n, NUM_ACTUATORS))
             if actuators.velocity is None
-            else np.abs(np.atleast_2d(actuators.velocity)) / self.velocity_max
+            else np.abs(np.atleast_2d(actuators.velocity)) / lim.velocity_max
         )
         force = (
             np.zeros((n, NUM_ACTUATORS))
             if actuators.effort is None
-            else np.abs(np.atleast_2d(actuators.effort)) / self.force_max
+            else np.abs(np.atleast_2d(actuators.effort)) / lim.force_max
         )
         violations: list[Violation] = []
         checks = (
-            ("stroke", stroke, l, np.where(l > self.length_max, self.length_max, self.length_min)),
-            ("velocity", velocity, actuators.velocity, self.velocity_max),
-            ("force", force, actuators.effort, self.force_max),
+            ("stroke", stroke, l, np.where(l > lim.length_max, lim.length_max, lim.length_min)),
+            ("velocity", velocity, actuators.velocity, lim.velocity_max),
+            ("force", force, actuators.effort, lim.force_max),
         )
         for kind, utilisation, raw_values, raw_limit in checks:
             if raw_values is None:
@@ -256,19 +259,24 @@ class RobotMapper:
         return LimitReport(stroke, velocity, force, tuple(violations))
 
     def clamp(self, actuators: ActuatorSample) -> tuple[ActuatorSample, np.ndarray]:
-        """Clamp setpoints to the stroke, velocity and force limits; also say which actuators were clamped."""
-        l = np.clip(actuators.position, self.length_min, self.length_max)
-        clamped = l != actuators.position
-        ld, f = actuators.velocity, actuators.effort
-        if ld is not None:
-            ld_clamped = np.clip(ld, -self.velocity_max, self.velocity_max)
-            clamped |= ld_clamped != ld
-            ld = ld_clamped
-        if f is not None:
-            f_clamped = np.clip(f, -self.force_max, self.force_max)
-            clamped |= f_clamped != f
-            f = f_clamped
-        return ActuatorSample(l, ld, actuators.acceleration, f), clamped
+        """Setpoints clamped to the stroke, velocity and force limits (``ActuatorLimits.clamp``), and which
+        actuators were clamped. A missing velocity or force stays missing."""
+        position, velocity, effort = actuators.position, actuators.velocity, actuators.effort
+        if velocity is None or effort is None:
+            zeros = np.zeros_like(position)  # inside every range: never clamped
+            rows = np.array([position, zeros if velocity is None else velocity, zeros if effort is None else effort])
+        else:
+            rows = np.array([position, velocity, effort])
+        (position, clamped_velocity, clamped_effort), clamped = self.limits.clamp(rows)
+        return (
+            ActuatorSample(
+                position,
+                None if velocity is None else clamped_velocity,
+                actuators.acceleration,
+                None if effort is None else clamped_effort,
+            ),
+            clamped,
+        )
 
 
 @functools.cache

@@ -98,9 +98,9 @@ def test_limit_report_flags_each_injected_violation_only(mapper: RobotMapper) ->
     assert mapper.limit_report(ok).ok
     l, ld, f = ok.position.copy(), ok.velocity.copy(), ok.effort.copy()
     knee, ankle, hip = ACTUATOR_INDEX["LLKnee_Act1"], ACTUATOR_INDEX["LRAnkle_Act2"], ACTUATOR_INDEX["LRHip3_Act1"]
-    l[1, knee] = mapper.length_max[knee] + 1e-3
-    ld[3, ankle] = -1.01 * mapper.velocity_max[ankle]
-    f[5, hip] = 1.2 * mapper.force_max[hip]
+    l[1, knee] = mapper.limits.length_max[knee] + 1e-3
+    ld[3, ankle] = -1.01 * mapper.limits.velocity_max[ankle]
+    f[5, hip] = 1.2 * mapper.limits.force_max[hip]
     report = mapper.limit_report(ActuatorSample(l, ld, None, f))
     found = [(v.sample, v.actuator, v.kind) for v in report.violations]
     assert found == [(1, "LLKnee_Act1", "stroke"), (3, "LRAnkle_Act2", "velocity"), (5, "LRHip3_Act1", "force")]
@@ -111,9 +111,9 @@ def test_limit_report_flags_each_injected_violation_only(mapper: RobotMapper) ->
 def test_paper_stroke_limits_are_the_actuator_limits(mapper: RobotMapper) -> None:
     """Paper table "ROM of linear actuators": knee 273-391 mm, 5845 N, 140 mm/s."""
     knee = ACTUATOR_INDEX["LRKnee_Act1"]
-    assert (mapper.length_min[knee], mapper.length_max[knee]) == pytest.approx((0.273, 0.391))
-    assert mapper.force_max[knee] == pytest.approx(5845.0)
-    assert mapper.velocity_max[knee] == pytest.approx(0.140)
+    assert (mapper.limits.length_min[knee], mapper.limits.length_max[knee]) == pytest.approx((0.273, 0.391))
+    assert mapper.limits.force_max[knee] == pytest.approx(5845.0)
+    assert mapper.limits.velocity_max[knee] == pytest.approx(0.140)
 
 
 def test_clamp_keeps_setpoints_inside_and_reports_which(mapper: RobotMapper) -> None:
@@ -124,8 +124,8 @@ def test_clamp_keeps_setpoints_inside_and_reports_which(mapper: RobotMapper) -> 
     l[ankle], f[ankle] = 1.0, -1e5
     clamped_sample, clamped = mapper.clamp(ActuatorSample(l, sample.velocity, None, f))
     assert clamped.nonzero()[0].tolist() == [ankle]
-    assert clamped_sample.position[ankle] == mapper.length_max[ankle]
-    assert clamped_sample.effort[ankle] == -mapper.force_max[ankle]
+    assert clamped_sample.position[ankle] == mapper.limits.length_max[ankle]
+    assert clamped_sample.effort[ankle] == -mapper.limits.force_max[ankle]
 
 
 def test_bad_shapes_and_missing_velocities_are_refused(mapper: RobotMapper) -> None:

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 from rh5_msgs_py.lazy_exports import lazy_exports
 
 if TYPE_CHECKING:
-    from .driver import ActuatorCommand, ActuatorReadings, DriverCore, Limits
+    from .driver import ActuatorCommand, ActuatorReadings, DriverCore
     from .ndlcom.board_map import BoardMap, load_board_map
     from .transports import Transport, open_transport
 
@@ -25,7 +25,6 @@ __all__ = [
     "ActuatorReadings",
     "BoardMap",
     "DriverCore",
-    "Limits",
     "Transport",
     "load_board_map",
     "open_transport",

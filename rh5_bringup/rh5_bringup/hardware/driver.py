@@ -16,7 +16,6 @@ from __future__ import annotations
 import time
 from collections import Counter
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -34,6 +33,7 @@ from rh5_bringup.hardware.ndlcom.payloads import (
     PayloadType,
 )
 from rh5_bringup.hardware.transports.base import Transport
+from rh5_hyrodyn_mapper.kinematics.base import ActuatorLimits
 from rh5_msgs_py.realtime import LatencyWindow, LatestValue
 
 FloatArray = np.ndarray
@@ -60,16 +60,6 @@ class ActuatorReadings(NamedTuple):
     errors: np.ndarray
 
 
-@dataclass(frozen=True)
-class Limits:
-    """Actuator limits the driver clamps setpoints to (stroke, speed, force), in ACTUATOR_NAMES order."""
-
-    position_min: FloatArray
-    position_max: FloatArray
-    velocity_max: FloatArray
-    effort_max: FloatArray
-
-
 class DriverCore:
     """One driver cycle per call; requests (enable, estop) from any thread."""
 
@@ -77,7 +67,7 @@ class DriverCore:
         self,
         board_map: BoardMap,
         transport: Transport,
-        limits: Limits,
+        limits: ActuatorLimits,
         *,
         command_timeout_ns: int,
         silence_timeout_ns: int,
@@ -101,12 +91,8 @@ class DriverCore:
         self._encoder = FrameEncoder(board_map.pc_address)
         self._frames = CommandFrames(self._encoder, board_map.addresses(), self._table)
         # setpoints are clamped to the actuator limits and to what the wire can carry, so every frame encodes
-        self._clip_low = np.maximum(
-            np.array([limits.position_min, -limits.velocity_max, -limits.effort_max]), self._frames.low
-        )
-        self._clip_high = np.minimum(
-            np.array([limits.position_max, limits.velocity_max, limits.effort_max]), self._frames.high
-        )
+        low, high = limits.box
+        self._box = (np.maximum(low, self._frames.low), np.minimum(high, self._frames.high))
         if len(board_map) >= 255:
             msg = f"{len(board_map)} boards: the telemetry sorting (newest_payloads) takes at most 254"
             raise ValueError(msg)
@@ -214,8 +200,7 @@ class DriverCore:
         values = np.array(command)  # (3, n): position, velocity, effort; one pass for every check below
         if not np.isfinite(values).all():
             return None, []
-        checked = np.clip(values, self._clip_low, self._clip_high)
-        clamped = (checked != values).any(axis=0)
+        checked, clamped = self.limits.clamp(values, self._box)
         names = [self.board_map.boards[i].name for i in np.flatnonzero(clamped)] if clamped.any() else []
         return ActuatorCommand(*checked), names
 

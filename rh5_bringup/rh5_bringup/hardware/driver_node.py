@@ -26,10 +26,11 @@ from rclpy.lifecycle import LifecycleNodeMixin, LifecycleState, TransitionCallba
 from std_msgs.msg import Bool
 from std_srvs.srv import SetBool, Trigger
 
-from rh5_bringup.hardware.driver import ActuatorCommand, DriverCore, Limits
+from rh5_bringup.hardware.driver import ActuatorCommand, DriverCore
 from rh5_bringup.hardware.driver_link import SwitchableLink
 from rh5_bringup.hardware.ndlcom.board_map import load_board_map
 from rh5_bringup.hardware.transports import open_transport
+from rh5_hyrodyn_mapper.kinematics.base import ActuatorLimits
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py import interfaces
 from rh5_msgs_py.conversions import JointStateCodec, Level, Status, diagnostics_to_msg
@@ -42,10 +43,9 @@ from rh5_msgs_py.realtime import DeadlineLoop
 DIAGNOSTICS_PERIOD_S: Final = 1.0
 
 
-def actuator_limits() -> Limits:
+def actuator_limits() -> ActuatorLimits:
     """The stroke, speed and force limits of every actuator (the mapper's, from the paper's tables)."""
-    mapper = robot_mapper()
-    return Limits(mapper.length_min, mapper.length_max, mapper.velocity_max, mapper.force_max)
+    return robot_mapper().limits
 
 
 NO_SILENCE_RULE_NS: Final = 10**18

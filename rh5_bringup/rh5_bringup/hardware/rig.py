@@ -13,9 +13,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from rh5_bringup.hardware.driver import ActuatorCommand, DriverCore, Limits
+from rh5_bringup.hardware.driver import ActuatorCommand, DriverCore
 from rh5_bringup.hardware.ndlcom.board_map import BoardMap
 from rh5_bringup.hardware.transports.base import Transport
+from rh5_hyrodyn_mapper.kinematics.base import ActuatorLimits
 from rh5_msgs_py.names import ACTUATOR_NAMES, LINEAR_ACTUATOR_NAMES
 from rh5_msgs_py.realtime import DeadlineLoop
 
@@ -24,9 +25,9 @@ LINEAR = np.array([name in LINEAR_ACTUATOR_NAMES for name in ACTUATOR_NAMES])
 SINE_AMPLITUDE = np.where(LINEAR, 0.005, 0.05)  # 5 mm on the linear actuators, 0.05 rad on the rotary drives
 
 
-def sine_centre(standing: np.ndarray, limits: Limits, amplitude: np.ndarray = SINE_AMPLITUDE) -> np.ndarray:
+def sine_centre(standing: np.ndarray, limits: ActuatorLimits, amplitude: np.ndarray = SINE_AMPLITUDE) -> np.ndarray:
     """The standing pose moved inside every stroke far enough for the sine (the straight knee sits at its end)."""
-    return np.clip(standing, limits.position_min + 2 * amplitude, limits.position_max - 2 * amplitude)
+    return np.clip(standing, limits.length_min + 2 * amplitude, limits.length_max - 2 * amplitude)
 
 
 class DriverLoop:
@@ -37,7 +38,7 @@ class DriverLoop:
         self,
         board_map: BoardMap,
         transport: Transport,
-        limits: Limits,
+        limits: ActuatorLimits,
         centre: np.ndarray,
         *,
         rate_hz: float = 1000.0,

@@ -14,13 +14,14 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
 from importlib import resources
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 import yaml
 
 from rh5_bringup.hardware.ndlcom.payloads import CommandMode
+from rh5_hyrodyn_mapper.kinematics.base import ActuatorLimits
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_msgs_py.names import ACTUATOR_NAMES, LINEAR_ACTUATOR_NAMES, NUM_ACTUATORS
 
@@ -34,15 +35,6 @@ NOMINAL_DT = 1e-3
 """The board cycle of the position loop and of the 1 kHz driver [s]."""
 
 PARAMETER_FILE = "actuator_params.yaml"
-
-
-class LimitSource(Protocol):
-    """Anything with the four actuator-limit arrays of `rh5_hyrodyn_mapper.mapping.RobotMapper`."""
-
-    length_min: FloatArray
-    length_max: FloatArray
-    velocity_max: FloatArray
-    force_max: FloatArray
 
 
 _ARRAY_FIELDS = (
@@ -252,14 +244,14 @@ def _assign_types(types: Mapping[str, Mapping[str, Any]], names: Sequence[str]) 
     return [hits[0] for hits in assigned]
 
 
-def default_params(path: str | Path | None = None, limits: LimitSource | None = None) -> ActuatorParams:
+def default_params(path: str | Path | None = None, limits: ActuatorLimits | None = None) -> ActuatorParams:
     """Parameters of all 32 actuators: type constants from the YAML (packaged by default), limits from the mapper.
 
-    ``limits`` defaults to `rh5_hyrodyn_mapper.mapping.robot_mapper()` (stroke, max velocity and max force per
+    ``limits`` defaults to the mapper's (``robot_mapper().limits``: stroke, max velocity and max force per
     actuator, ACTUATOR_NAMES order). See actuator_params.yaml for the derivation and the source of every value.
     """
     data = _load_yaml(path)
-    limits = robot_mapper() if limits is None else limits
+    limits = robot_mapper().limits if limits is None else limits
     names = ACTUATOR_NAMES
     n = NUM_ACTUATORS
     types = data["types"]

@@ -9,6 +9,7 @@ power, f . l_dot = tau . y_dot: tau = J^T f and f = J^-T tau. Subclasses give th
 
 from __future__ import annotations
 
+import functools
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -36,12 +37,33 @@ class SingularityError(KinematicsError):
 
 @dataclass(frozen=True)
 class ActuatorLimits:
-    """Per-actuator limits (paper table "ROM of linear actuators"): stroke [m], speed [m/s], force [N]."""
+    """Per-actuator limits (paper table "ROM of linear actuators"): stroke [m], speed [m/s], force [N] (rad, rad/s
+    and Nm for the rotary drives). ``clamp`` is the one place where setpoints are clamped to them."""
 
     length_min: FloatArray
     length_max: FloatArray
     velocity_max: FloatArray
     force_max: FloatArray
+
+    @functools.cached_property
+    def box(self) -> tuple[FloatArray, FloatArray]:
+        """(low, high), each (3, n): the position, velocity and force range of every setpoint."""
+        low = np.stack([self.length_min, -self.velocity_max, -self.force_max])
+        high = np.stack([self.length_max, self.velocity_max, self.force_max])
+        return low, high
+
+    def clamp(
+        self, setpoints: FloatArray, box: tuple[FloatArray, FloatArray] | None = None
+    ) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+        """``setpoints`` (3, ..., n: position, velocity, force rows) clamped into ``box`` (default: these limits;
+        the driver passes them intersected with the wire's range), and per actuator (and sample) whether any of its
+        three values was moved. NaN stays NaN: callers refuse non-finite setpoints before."""
+        low, high = self.box if box is None else box
+        if setpoints.ndim > 2:  # a batch: the bounds broadcast over the sample axes
+            shape = (3, *(1,) * (setpoints.ndim - 2), low.shape[-1])
+            low, high = low.reshape(shape), high.reshape(shape)
+        clamped = np.clip(setpoints, low, high)
+        return clamped, (clamped != setpoints).any(axis=0)
 
 
 def frozen_array(values: npt.ArrayLike) -> FloatArray:
