@@ -153,8 +153,8 @@ def test_out_of_limit_command_is_clamped_and_reported(loopback: Loopback) -> Non
     loopback.diagnostics.clear()
     assert loopback.send_until(joint_state_to_msg(JOINT_NAMES, q, v, tau), lambda: bool(loopback.actuator_commands))
     l, _, f = joint_state_from_msg(loopback.actuator_commands[0], ACTUATOR_NAMES)
-    assert l[ACTUATOR_INDEX["LLKnee_Act1"]] == mapper.length_max[ACTUATOR_INDEX["LLKnee_Act1"]]
-    assert f[ACTUATOR_INDEX["LRKnee_Act1"]] == pytest.approx(mapper.force_max[ACTUATOR_INDEX["LRKnee_Act1"]])
+    assert l[ACTUATOR_INDEX["LLKnee_Act1"]] == mapper.limits.length_max[ACTUATOR_INDEX["LLKnee_Act1"]]
+    assert f[ACTUATOR_INDEX["LRKnee_Act1"]] == pytest.approx(mapper.limits.force_max[ACTUATOR_INDEX["LRKnee_Act1"]])
 
     def clamp_reported() -> bool:
         statuses = [s for msg in loopback.diagnostics for s in diagnostics_from_msg(msg) if s.name == "rh5/mapper"]

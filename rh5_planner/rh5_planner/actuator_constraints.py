@@ -50,15 +50,15 @@ def actuator_usage(
     order. ``factors`` (kind -> (32,) per joint) scale the limits as the design heuristic plans with them."""
     mapper = robot_mapper()
     sample = mapper.to_actuators(q, v)
-    lo, hi = mapper.length_min[_ACT_IDX], mapper.length_max[_ACT_IDX]
+    lo, hi = mapper.limits.length_min[_ACT_IDX], mapper.limits.length_max[_ACT_IDX]
     scale = {k: _actuator_factors(factors, k) for k in ACTUATOR_LIMIT_KINDS}
     out = {
         "stroke": np.abs(sample.position[:, _ACT_IDX] - 0.5 * (lo + hi)) / (0.5 * (hi - lo) * scale["stroke"]),
-        "velocity": np.abs(sample.velocity[:, _ACT_IDX]) / (mapper.velocity_max[_ACT_IDX] * scale["velocity"]),
+        "velocity": np.abs(sample.velocity[:, _ACT_IDX]) / (mapper.limits.velocity_max[_ACT_IDX] * scale["velocity"]),
     }
     if tau is not None:
         force = mapper.to_actuators(q[: len(tau)], None, None, tau).effort
-        out["force"] = np.abs(force[:, _ACT_IDX]) / (mapper.force_max[_ACT_IDX] * scale["force"])
+        out["force"] = np.abs(force[:, _ACT_IDX]) / (mapper.limits.force_max[_ACT_IDX] * scale["force"])
     return out
 
 

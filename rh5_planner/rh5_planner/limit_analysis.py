@@ -318,12 +318,12 @@ def _actuator_usage(
         forces = mapper.to_actuators(q[: len(tau)], None, None, tau).effort
     except (KinematicsError, ValueError) as err:
         return None, f"{type(err).__name__}: {err}"
-    lo, hi = mapper.length_min[idx], mapper.length_max[idx]
+    lo, hi = mapper.limits.length_min[idx], mapper.limits.length_max[idx]
     zero = np.zeros(idx.size)
     bounds = {
         "stroke": (0.5 * (lo + hi), 0.5 * (hi - lo)),
-        "actuator_velocity": (zero, mapper.velocity_max[idx]),
-        "force": (zero, mapper.force_max[idx]),
+        "actuator_velocity": (zero, mapper.limits.velocity_max[idx]),
+        "force": (zero, mapper.limits.force_max[idx]),
     }
     values = {"stroke": kinematic.position, "actuator_velocity": kinematic.velocity, "force": forces}
     out = {
