@@ -126,7 +126,8 @@ def configuration_limits(q: FloatArray) -> dict[str, dict[str, FloatArray]]:
         a = ACTUATOR_INDEX[_SINGLE_ACTUATOR_JOINTS[joint]]
         ratio = np.abs(np.asarray(rates)[:, a])
         with np.errstate(divide="ignore"):
-            out[joint] = {"velocity": mapper.limits.velocity_max[a] / ratio, "torque": mapper.limits.force_max[a] * ratio}
+            limits = mapper.limits
+            out[joint] = {"velocity": limits.velocity_max[a] / ratio, "torque": limits.force_max[a] * ratio}
     return out
 
 
