@@ -307,9 +307,13 @@ def test_driver_node_and_sim_node_through_ros(
     assert run.processes[0].process.returncode == 0
     assert (ok, message) == (True, "emergency stop latched; boards hold")
     assert latch[-1] is True
-    # This process both publishes at 1 kHz and spins: it takes what it can; the node itself published every cycle.
+    # This process both publishes at 1 kHz and spins: it takes what it can; the node itself published every cycle
+    # once every board had answered (before that it publishes nothing: a loaded start-up took 200 ms of 4 s, CI).
     assert len(states) > 500, f"{len(states)} actuator_states in 2.5 s"
-    assert summary["sent"]["actuator_states"] >= 0.95 * summary["loop"]["cycles"]
+    counts = summary["counts"]
+    published = counts["cycles"] - counts.get("cycles_before_all_heard", 0)
+    assert published > 0.8 * summary["loop"]["cycles"], counts
+    assert abs(summary["sent"]["actuator_states"] - published) <= 2, (summary["sent"], counts)
     late = times > times[0] + 1e9
     references = np.array([source.reference(t)[0] for t in times[late]])
     typical, most = np.percentile(np.abs(states[late] - references), [50.0, 90.0], axis=0)

@@ -240,6 +240,7 @@ class DriverNode(SuiteNode, LifecycleNodeMixin):
     def _tick(self, now_ns: int, period_ns: int) -> None:
         readings = self.core.cycle(now_ns, period_ns)
         if not self.core.all_heard:
+            self.core.counts["cycles_before_all_heard"] += 1
             return  # no actuator_states until every board has reported once (no made-up zeros downstream)
         stamp_ns = self.core.stamp_ns(self.sim_time)
         self.publish_states(
