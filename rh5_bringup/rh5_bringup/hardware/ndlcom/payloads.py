@@ -173,8 +173,9 @@ TELEMETRY_DTYPE: Final = np.dtype(
 assert COMMAND_DTYPE.itemsize == COMMAND_LAYOUT.size
 assert TELEMETRY_DTYPE.itemsize == TELEMETRY_LAYOUT.size
 
-MAX_MODE: Final = max(CommandMode)
-"""The highest mode a board may report: telemetry naming another is invalid."""
+MAX_MODE: Final = int(max(CommandMode))
+"""The highest mode a board may report: telemetry naming another is invalid (a plain int: numpy compares an IntEnum
+member through Python objects, ~5 us a comparison)."""
 _USED_MASK: Final = np.array([_USED_FIELDS[m] for m in CommandMode], dtype=bool)  # (mode, field)
 _MEASURED: Final = ("position", "velocity", "effort", "current", "temperature")
 _MEASURED_BOUNDS: Final = np.array([[INT32_MIN, INT32_MAX]] * 4 + [[INT16_MIN, INT16_MAX]], dtype=float)
@@ -224,9 +225,8 @@ def _modes(modes: Sequence[int] | np.ndarray, table: ScalingTable) -> np.ndarray
     array = np.asarray(modes)
     if array.shape != (n,) or array.dtype.kind not in "iu":
         raise PayloadError(f"modes must be {n} CommandMode values, got {modes!r}")
-    unknown = (array < 0) | (array > MAX_MODE)
-    if unknown.any():
-        i = int(np.argmax(unknown))
+    if n and (array.max() > MAX_MODE or (array.dtype.kind == "i" and array.min() < 0)):  # two reductions: 1 kHz
+        i = int(np.argmax((array < 0) | (array > MAX_MODE)))
         raise PayloadError(f"{_board(table, i)}unknown command mode {int(array[i])}")
     return array
 
@@ -276,7 +276,7 @@ def encode_commands(
         raise PayloadError(f"{where}{name} = {value!r} is outside the wire range [{low}, {high}]")
     raw = np.rint(np.where(used, values, 0.0) / table.lsb).astype(np.int32)
     out = np.zeros(n, dtype=COMMAND_DTYPE)
-    out["type"], out["version"] = PayloadType.COMMAND, COMMAND_VERSION
+    out["type"], out["version"] = int(PayloadType.COMMAND), COMMAND_VERSION
     out["mode"], out["sequence"] = mode_array, sequence
     out["setpoint"], out["velocity_ff"], out["effort_ff"] = raw
     blob, size = out.tobytes(), COMMAND_LAYOUT.size
@@ -345,7 +345,7 @@ def encode_telemetry_many(telemetry: TelemetryArrays, table: ScalingTable) -> li
         unknown mode, flags beyond uint16, a sequence beyond uint32, a board time beyond uint64.
     """
     n = len(table)
-    mode = _modes(np.asarray(telemetry.mode).astype(np.int64, copy=False), table)
+    mode = _modes(telemetry.mode, table)
     counters = []
     for name, top in _COUNTERS:
         value = np.asarray(getattr(telemetry, name))
@@ -371,7 +371,7 @@ def encode_telemetry_many(telemetry: TelemetryArrays, table: ScalingTable) -> li
         low, high = _MEASURED_BOUNDS[row] * lsb[row, col]
         raise PayloadError(f"{where}{name} = {value!r} does not fit the wire field ({low:.6g} .. {high:.6g})")
     out = np.zeros(n, dtype=TELEMETRY_DTYPE)
-    out["type"], out["version"], out["mode"] = PayloadType.TELEMETRY, TELEMETRY_VERSION, mode
+    out["type"], out["version"], out["mode"] = int(PayloadType.TELEMETRY), TELEMETRY_VERSION, mode
     out["status"], out["errors"], out["sequence"], out["board_time_us"] = counters
     out["position"], out["velocity"], out["effort"], out["current"] = raw[:4].astype(np.int32)
     out["temperature"] = raw[4].astype(np.int16)
@@ -387,10 +387,10 @@ def encode_telemetry(telemetry: Telemetry, scaling: Scaling) -> bytes:
 
 
 def decode_telemetry_of(
-    payloads: Sequence[bytes] | bytes, boards: np.ndarray, table: ScalingTable
+    payloads: Sequence[bytes] | bytes, boards: np.ndarray | slice, table: ScalingTable
 ) -> tuple[np.ndarray, TelemetryArrays]:
     """Decode TELEMETRY v1 payloads (a list, or already joined) of the boards at ``boards`` (table indices, any
-    subset) in one pass; the numpy form of the driver's C decoder (``_framing.decode_telemetry_into``).
+    subset, or a slice) in one pass; the numpy form of the driver's C decoder (``_framing.decode_telemetry_into``).
 
     The payloads must have the size, type and version bytes of TELEMETRY v1 (checked per frame by the caller,
     cheaply); returns which of them also have a known mode and zero reserved fields (the rest are to be dropped)
@@ -424,7 +424,7 @@ def decode_telemetry_many(payloads: Sequence[bytes], table: ScalingTable) -> Tel
                 _check_header(data, PayloadType.TELEMETRY, TELEMETRY_VERSION, TELEMETRY_LAYOUT)
             except PayloadError as error:
                 raise PayloadError(f"{_board(table, index)}{error}") from None
-    valid, arrays = decode_telemetry_of(payloads, np.arange(len(table)), table)
+    valid, arrays = decode_telemetry_of(payloads, slice(None), table)
     if not valid.all():
         i = int(np.argmin(valid))
         mode, reserved = int(arrays.mode[i]), payloads[i][3] | int.from_bytes(payloads[i][38:40], "little")
