@@ -1,8 +1,9 @@
 """Every package names its public API, and stays small enough to read (issue 16).
 
-Each package and subpackage of the suite lists its public names in ``__all__`` (sorted, unique), and every one of
-them resolves: the lazy ones (rh5_msgs_py.lazy_exports) import their module on first use, so a name whose module
-moved fails here rather than in a user's program. No non-test module is over 500 lines.
+Each package and subpackage of the suite lists its public names in ``__all__`` (unique; ruff keeps it sorted), and
+every one of them resolves: the lazy ones (rh5_msgs_py.lazy_exports) import their module on first use, so a name
+whose module moved fails here rather than in a user's program; a lazy map names exactly the public names. No
+non-test module is over 500 lines.
 """
 
 from __future__ import annotations
@@ -34,6 +35,9 @@ def test_every_package_names_its_public_api_and_each_name_resolves(name: str) ->
     assert list(names) == sorted(set(names), key=list(names).index), f"{name}.__all__ repeats a name"
     missing = [n for n in names if not hasattr(module, n) and importlib.util.find_spec(f"{name}.{n}") is None]
     assert missing == [], f"{name}.__all__ names what it does not have: {missing}"
+    lazy = getattr(module, "_EXPORTS", None)
+    if lazy is not None:  # the lazy map and the public names are one list
+        assert set(lazy) == set(names), f"{name}: _EXPORTS and __all__ differ by {set(lazy) ^ set(names)}"
 
 
 def _modules() -> list[Path]:

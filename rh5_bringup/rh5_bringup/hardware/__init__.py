@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from .transports import Transport, open_transport
 
 _EXPORTS = {
-    **dict.fromkeys(("ActuatorCommand", "ActuatorReadings", "DriverCore", "Limits"), "driver"),
+    **dict.fromkeys(("ActuatorCommand", "ActuatorReadings", "DriverCore"), "driver"),
     **dict.fromkeys(("BoardMap", "load_board_map"), "ndlcom.board_map"),
     **dict.fromkeys(("Transport", "open_transport"), "transports"),
 }
