@@ -48,8 +48,8 @@ class ActuatorLimits:
     @functools.cached_property
     def box(self) -> tuple[FloatArray, FloatArray]:
         """(low, high), each (3, n): the position, velocity and force range of every setpoint."""
-        low = np.stack([self.length_min, -self.velocity_max, -self.force_max])
-        high = np.stack([self.length_max, self.velocity_max, self.force_max])
+        low = frozen_array(np.stack([self.length_min, -self.velocity_max, -self.force_max]))
+        high = frozen_array(np.stack([self.length_max, self.velocity_max, self.force_max]))
         return low, high
 
     def clamp(
