@@ -62,6 +62,14 @@ _ARRAY_FIELDS = (
     "temperature_max",
     "following_error_max",
 )
+_NON_NEGATIVE_FIELDS = ("viscous", "coulomb", "ki_position", "ki_velocity")
+"""May be zero (no friction, no integral action); every other array but the stroke ends and temperatures must be
+> 0."""
+_POSITIVE_FIELDS = tuple(
+    f
+    for f in _ARRAY_FIELDS
+    if f not in {*_NON_NEGATIVE_FIELDS, "position_min", "position_max", "ambient_temperature", "temperature_max"}
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -118,29 +126,12 @@ class ActuatorParams:
                 msg = f"ActuatorParams.{name}: not finite"
                 raise ValueError(msg)
             object.__setattr__(self, name, read_only(value))
-        positive = (
-            "velocity_max",
-            "force_max",
-            "transmission_ratio",
-            "torque_constant",
-            "force_constant",
-            "resistance",
-            "current_max",
-            "inertia",
-            "current_time_constant",
-            "kp_position",
-            "braking_acceleration",
-            "kp_velocity",
-            "thermal_resistance",
-            "thermal_time_constant",
-            "following_error_max",
-        )
-        for name in positive:
+        for name in _POSITIVE_FIELDS:
             bad = np.flatnonzero(getattr(self, name) <= 0)
             if bad.size:
                 msg = f"ActuatorParams.{name}: must be > 0 ({self.names[bad[0]]})"
                 raise ValueError(msg)
-        for name in ("viscous", "coulomb", "ki_position", "ki_velocity"):
+        for name in _NON_NEGATIVE_FIELDS:
             bad = np.flatnonzero(getattr(self, name) < 0)
             if bad.size:
                 msg = f"ActuatorParams.{name}: must be >= 0 ({self.names[bad[0]]})"

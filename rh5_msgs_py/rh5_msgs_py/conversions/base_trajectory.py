@@ -15,7 +15,7 @@ from trajectory_msgs.msg import (
 
 from ._common import NS_PER_S, FloatArray
 from .joint_names import _listing, _unique_names
-from .joint_trajectory import _point_times_ns, _timed_points, _trajectory
+from .joint_trajectory import _checked_matrix, _point_times_ns, _timed_points, _trajectory
 from .times import _check_increasing, _times_to_ns, time_to_ns
 
 
@@ -36,11 +36,7 @@ class BaseTrajectoryArrays(NamedTuple):
 def _rows_as_lists(value: ArrayLike | None, shape: tuple[int, int], what: str) -> list[list[float]] | None:
     if value is None:
         return None
-    mat = np.asarray(value, dtype=np.float64)
-    if mat.shape != shape:
-        msg = f"{what} must have shape {shape}, got {mat.shape}"
-        raise ValueError(msg)
-    return mat.tolist()  # type: ignore[no-any-return]
+    return _checked_matrix(value, shape, what).tolist()  # type: ignore[no-any-return]
 
 
 def _twist(values: list[float]) -> Twist:

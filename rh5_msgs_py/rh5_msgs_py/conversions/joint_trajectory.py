@@ -40,14 +40,20 @@ class JointTrajectoryArrays(NamedTuple):
 _POINT_FIELDS: Final = ("positions", "velocities", "accelerations", "effort")
 
 
-def _matrix_rows(value: ArrayLike | None, shape: tuple[int, int], what: str) -> list[bytes] | None:
-    """(N, n) array -> one bytes block per row (None stays None)."""
-    if value is None:
-        return None
+def _checked_matrix(value: ArrayLike, shape: tuple[int, int], what: str) -> FloatArray:
+    """``value`` as a float64 array of exactly ``shape``, or ValueError naming ``what``."""
     mat = np.asarray(value, dtype=np.float64)
     if mat.shape != shape:
         msg = f"{what} must have shape {shape}, got {mat.shape}"
         raise ValueError(msg)
+    return mat
+
+
+def _matrix_rows(value: ArrayLike | None, shape: tuple[int, int], what: str) -> list[bytes] | None:
+    """(N, n) array -> one bytes block per row (None stays None)."""
+    if value is None:
+        return None
+    mat = _checked_matrix(value, shape, what)
     flat = mat.tobytes()
     step = 8 * shape[1]
     return [flat[i : i + step] for i in range(0, step * shape[0], step)]
