@@ -66,8 +66,12 @@ class Harness:
 def harness(ros_graph: Any, ros_test_environment: dict[str, str]) -> Iterator[Harness]:
     # The physics bringup's 0.5 s stale-state timeout: this test is about services and rate; the 5 ms rule has its
     # own unit test, and the test-side 1 kHz publisher shares two cores with everything else here (late in a CI
-    # run a stall of it went past 50 ms, and the stabilizer rightly held before the test asked it to).
-    spec = NodeSpec("stabilizer", "rh5_joint_stabilizer", "stabilizer_node", {"state_timeout_s": 0.5})
+    # run a stall of it went past 50 ms, and the stabilizer rightly held before the test asked it to). Priority 50
+    # as the control process has on the robot: with normal scheduling the loop lost up to 30 % of its cycles to
+    # the test's own 1 kHz publisher and executor on these two cores.
+    spec = NodeSpec(
+        "stabilizer", "rh5_joint_stabilizer", "stabilizer_node", {"state_timeout_s": 0.5, "realtime_priority": 50}
+    )
     bringup = Bringup("", (spec,))
     log_dir = Path(ros_test_environment["ROS_LOG_DIR"]) / "stabilizer_node"
     test_side = Harness(ros_graph)
@@ -110,13 +114,23 @@ def test_start_plays_at_1khz_then_hold_and_stop(harness: Harness) -> None:
     ok, message = call_trigger(harness.node, "/stabilizer/start")
     assert ok, message
     harness.commands.clear()
-    harness.spin_for(1.0)
+    seen = len(harness.statuses)
+    harness.spin_for(1.5)
     stamps = np.sort(harness.commands)
-    # Best effort through DDS to this test's own Python executor on 2 busy cores: the test may receive only a
-    # part, but consecutive samples it does receive are one cycle (1 ms) apart, which a slower loop cannot give.
-    assert len(stamps) >= 100, f"{len(stamps)} joint_commands in 1 s"
-    spacing = np.diff(stamps)
-    assert 0.5e-3 < np.percentile(spacing, 10) < 1.5e-3, f"spacing p10 {np.percentile(spacing, 10) * 1e3:.2f} ms"
+    # Best effort through DDS to this test's own Python executor on 2 busy cores: late in a CI run the test
+    # received only every second or third sample, so the rate is the loop's own report, and the stamps show
+    # that the commands are made one cycle (1 ms) apart, which a slower loop cannot give.
+    assert len(stamps) >= 100, f"{len(stamps)} joint_commands in 1.5 s"
+    one_cycle = np.count_nonzero((np.diff(stamps) > 0.5e-3) & (np.diff(stamps) < 1.5e-3))
+    assert one_cycle >= 3, f"only {one_cycle} of {len(stamps) - 1} spacings are one cycle"
+    playing = [s for s in harness.statuses[seen:] if s.values.get("state") in ("ramp_in", "playing")]
+    assert playing, "no diagnostics while playing"
+    # The loop's median period is its rate; the rate over a window also counts the cycles the hypervisor takes
+    # away from this VM (#13: 1-3 % even for a bare loop here), so it only has to rule out a slower loop.
+    periods = [float(s.values[interfaces.LoopKeys.PERIOD_P50_US]) for s in playing]
+    rates = [float(s.values[interfaces.LoopKeys.RATE_HZ]) for s in playing]
+    assert all(950.0 < p < 1050.0 for p in periods), f"median periods while playing: {periods} us"
+    assert min(rates) > 800.0, f"loop rates while playing: {rates} Hz"
     ok, message = call_trigger(harness.node, "/stabilizer/hold", timeout_s=2.0)
     assert (ok, message) == (True, "holding")
     harness.spin_for(1.2)
