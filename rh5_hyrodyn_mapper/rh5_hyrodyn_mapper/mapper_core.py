@@ -18,10 +18,10 @@ import numpy as np
 
 from rh5_hyrodyn_mapper.kinematics.base import KinematicsError
 from rh5_hyrodyn_mapper.mapping import ActuatorSample, JointSample, RobotMapper
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import ACTUATOR_NAMES
 from rh5_msgs_py.realtime import LatencyWindow
 
-FloatArray = np.ndarray
 JOINT_COMMANDS = "joint_commands"
 ACTUATOR_STATES = "actuator_states"
 

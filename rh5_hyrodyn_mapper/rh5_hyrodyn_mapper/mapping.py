@@ -18,13 +18,8 @@ from typing import Final, NamedTuple
 import numpy as np
 
 from rh5_hyrodyn_mapper.kinematics import build_submechanisms, kernels
-from rh5_hyrodyn_mapper.kinematics.base import (
-    FloatArray,
-    KinematicsError,
-    SubmechanismModel,
-    actuator_limits,
-    common_samples,
-)
+from rh5_hyrodyn_mapper.kinematics.base import KinematicsError, SubmechanismModel, actuator_limits, common_samples
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import ACTUATOR_INDEX, ACTUATOR_NAMES, JOINT_INDEX, NUM_ACTUATORS, NUM_JOINTS
 
 DEFAULT_MAX_CONDITION: Final = 1e6

@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 from rclpy.serialization import serialize_message
 
-FloatArray = npt.NDArray[np.float64]
+from rh5_msgs_py.array_types import FloatArray
 
 
 def _positions(data: bytes, markers: Sequence[bytes]) -> npt.NDArray[np.intp]:

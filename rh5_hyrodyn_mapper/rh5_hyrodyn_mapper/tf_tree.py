@@ -14,12 +14,10 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 import pinocchio as pin
 
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import JOINT_NAMES
-
-FloatArray = npt.NDArray[np.float64]
 
 
 def rotation_to_quaternion(rotation: FloatArray) -> FloatArray:

@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from rh5_joint_stabilizer.reference import FloatArray, ReferenceSample
+from rh5_joint_stabilizer.reference import ReferenceSample
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import JOINT_INDEX
 from rh5_msgs_py.realtime import LatestValue
 

@@ -19,7 +19,8 @@ from typing import NamedTuple
 import numpy as np
 import yaml
 
-from rh5_joint_stabilizer.reference import FloatArray, PlannedTrajectory, RampIn, ReferenceSample
+from rh5_joint_stabilizer.reference import PlannedTrajectory, RampIn, ReferenceSample
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import JOINT_GROUPS, JOINT_INDEX, JOINT_NAMES, NUM_JOINTS
 
 

@@ -13,7 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from rh5_joint_stabilizer.reference import FloatArray, PlannedTrajectory, TrajectoryRejectedError, validate_trajectory
+from rh5_joint_stabilizer.reference import PlannedTrajectory, TrajectoryRejectedError, validate_trajectory
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.conversions import joint_trajectory_from_msg
 from rh5_msgs_py.names import JOINT_INDEX, JOINT_NAMES, NUM_JOINTS
 

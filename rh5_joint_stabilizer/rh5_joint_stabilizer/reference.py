@@ -13,12 +13,11 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
-import numpy.typing as npt
 
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.hermite import hermite_weights
 from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS
 
-FloatArray = npt.NDArray[np.float64]
 JUMP_MARGIN = 1.05  # a knot-to-knot move may reach 105 % of the velocity limit (rounding of planned knots)
 
 

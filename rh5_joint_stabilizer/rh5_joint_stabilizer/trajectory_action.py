@@ -29,7 +29,8 @@ from rh5_joint_stabilizer.goal_check import (
     check_goal,
     violations,
 )
-from rh5_joint_stabilizer.reference import FloatArray, PlannedTrajectory
+from rh5_joint_stabilizer.reference import PlannedTrajectory
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.conversions import to_time_msg
 from rh5_msgs_py.names import JOINT_NAMES
 

@@ -10,11 +10,11 @@ from __future__ import annotations
 from typing import TypeVar
 
 import numpy as np
-import numpy.typing as npt
+
+from rh5_msgs_py.array_types import FloatArray
 
 __all__ = ["hermite_curvature_weights", "hermite_weights"]
 
-FloatArray = npt.NDArray[np.float64]
 S = TypeVar("S", float, FloatArray)
 
 

@@ -28,6 +28,7 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from rh5_msgs_py.array_types import BoolArray, FloatArray
 from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS
 
 __all__ = [
@@ -99,10 +100,6 @@ class TrajectoryContentError(TrajectoryFileError):
 
 class ModelHashMismatchError(TrajectoryFileError):
     """The trajectory was planned for a different robot model than the one in use."""
-
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
 
 
 def _float_array(name: str, value: ArrayLike, shape: tuple[int, ...], *, allow_nan: bool = False) -> FloatArray:

@@ -40,11 +40,11 @@ import numpy.typing as npt
 from rh5_hyrodyn_mapper.kinematics import build_submechanisms
 from rh5_hyrodyn_mapper.kinematics.base import SubmechanismModel
 from rh5_hyrodyn_mapper.model import joint_limits
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import JOINT_INDEX, NUM_JOINTS
 
 __all__ = ["ACTUATOR_LIMIT_KINDS", "PARALLEL_KINDS", "ActuatorBounds", "JointBoxes", "parallel_units"]
 
-FloatArray = npt.NDArray[np.float64]
 ACTUATOR_LIMIT_KINDS: Final = ("stroke", "velocity", "force")
 """The actuator limits of Table I, in the names of costs.yaml ``actuator_limits.kinds``."""
 PARALLEL_KINDS: Final = ("1-RRPR", "2-SPRR+1U", "2-SPU+1U")

@@ -27,6 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rh5_hyrodyn_mapper.mapping import robot_mapper
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import ACTUATOR_INDEX, NUM_JOINTS
 from rh5_msgs_py.trajectory_file import NQ, TrajectoryData
 
@@ -35,7 +36,6 @@ from .interpolation import interpolate
 
 __all__ = ["LINEAR_ACTUATORS", "ActuatorCheck", "ActuatorConstraints", "actuator_usage", "check_trajectory"]
 
-FloatArray = npt.NDArray[np.float64]
 LINEAR_ACTUATORS: Final[tuple[str, ...]] = tuple(a for m in parallel_units() for a in m.actuators)
 """The 14 linear actuators of Table I (parallel submechanisms), in names.ACTUATOR_NAMES order."""
 _ACT_IDX: Final = np.array([ACTUATOR_INDEX[a] for a in LINEAR_ACTUATORS], dtype=np.intp)

@@ -35,12 +35,12 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from rh5_hyrodyn_mapper.tf_tree import rotation_to_quaternion
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.hermite import hermite_curvature_weights, hermite_weights
 from rh5_msgs_py.trajectory_file import NQ, TrajectoryData
 
 __all__ = ["RATE_HZ", "Interpolated", "euler_tangents", "hermite", "interpolate"]
 
-FloatArray = npt.NDArray[np.float64]
 RATE_HZ: Final = 1000.0
 
 

@@ -28,11 +28,11 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
-import numpy.typing as npt
 
 from rh5_hyrodyn_mapper.kinematics.base import KinematicsError
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_hyrodyn_mapper.model import JointLimits, joint_limits
+from rh5_msgs_py.array_types import FloatArray, IntArray
 from rh5_msgs_py.names import ACTUATOR_INDEX, JOINT_NAMES
 from rh5_msgs_py.trajectory_file import TrajectoryData
 
@@ -51,9 +51,6 @@ __all__ = [
     "contact_check",
     "solver_log_of",
 ]
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
 
 
 class PlannedResult(Protocol):

@@ -20,6 +20,7 @@ from typing import Any, Final, Protocol
 import numpy as np
 import numpy.typing as npt
 
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import JOINT_GROUPS, JOINT_INDEX, JOINT_NAMES, SUBMECHANISMS
 
 __all__ = [
@@ -34,7 +35,6 @@ __all__ = [
     "side_free_name",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 JOINT_KINDS: Final = ("position", "velocity", "torque")
 """Joint-space limit kinds; also the kinds :class:`LimitScale` and :func:`limit_factors` scale."""

@@ -20,13 +20,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-import numpy.typing as npt
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
 
 from rh5_hyrodyn_mapper.kinematics.base import KinematicsError
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_hyrodyn_mapper.model import joint_limits
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import ACTUATOR_INDEX, JOINT_GROUPS, JOINT_INDEX, SUBMECHANISMS
 from rh5_msgs_py.trajectory_file import NQ, TrajectoryData
 
@@ -38,7 +38,6 @@ if TYPE_CHECKING:
 
 __all__ = ["LEG_JOINTS", "configuration_limits", "plot_actuators", "plot_cop", "plot_joints"]
 
-FloatArray = npt.NDArray[np.float64]
 
 LEG_JOINTS = JOINT_GROUPS["left_leg"] + JOINT_GROUPS["right_leg"]
 _FOOT_LABELS = ("LF", "RF")

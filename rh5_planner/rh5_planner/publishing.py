@@ -27,6 +27,7 @@ from typing import Any, Final
 import numpy as np
 import numpy.typing as npt
 
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.conversions import base_trajectory_to_msg, joint_trajectory_to_msg, wrench_to_msg
 from rh5_msgs_py.names import FOOT_FRAMES, JOINT_NAMES
 from rh5_msgs_py.trajectory_file import NQ, TrajectoryData
@@ -35,7 +36,6 @@ from .interpolation import interpolate
 
 __all__ = ["BASE_FRAME", "BASE_JOINT", "PlannedMessages", "hold_messages", "planned_messages"]
 
-FloatArray = npt.NDArray[np.float64]
 BASE_JOINT: Final = "floating_base"
 BASE_FRAME: Final = "world"
 

@@ -17,7 +17,7 @@ from typing import Final
 import numpy as np
 from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
+from rh5_msgs_py.array_types import FloatArray
 
 _LE_HEADERS: Final = (b"\x00\x01", b"\x00\x03")  # CDR_LE, PL_CDR_LE
 _UINT32: Final = struct.Struct("<I")

@@ -20,8 +20,9 @@ from matplotlib.figure import Figure
 
 from rh5_bringup.analysis.markdown import number
 from rh5_bringup.analysis.metrics import BASE_BAND_M
-from rh5_bringup.analysis.records import FloatArray, JointSeries
+from rh5_bringup.analysis.records import JointSeries
 from rh5_bringup.analysis.results import Analysis
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import JOINT_NAMES, LINEAR_ACTUATOR_NAMES
 
 PAPER_ACTUATORS: Final = ("LLAnkle_Act1", "LLAnkle_Act2")

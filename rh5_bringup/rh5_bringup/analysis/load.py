@@ -23,7 +23,7 @@ from mcap.reader import make_reader
 from numpy.typing import NDArray
 from rosbags.highlevel import AnyReader, AnyReaderError
 
-from rh5_bringup.analysis.cdr import CdrError, FloatArray, decode_joint_states, decode_stamped_floats
+from rh5_bringup.analysis.cdr import CdrError, decode_joint_states, decode_stamped_floats
 from rh5_bringup.analysis.records import (
     BoolSeries,
     DiagnosticRecord,
@@ -36,6 +36,7 @@ from rh5_bringup.analysis.records import (
     WrenchSeries,
 )
 from rh5_msgs_py import interfaces
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.conversions import time_to_ns
 from rh5_msgs_py.names import ACTUATOR_NAMES, JOINT_NAMES
 

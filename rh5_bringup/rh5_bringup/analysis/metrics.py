@@ -13,7 +13,8 @@ from typing import Final
 import numpy as np
 from numpy.typing import NDArray
 
-from rh5_bringup.analysis.records import BoolSeries, DiagnosticRecord, FloatArray, JointSeries, PlannedBase, PoseSeries
+from rh5_bringup.analysis.records import BoolSeries, DiagnosticRecord, JointSeries, PlannedBase, PoseSeries
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.diagnostic_keys import (
     PHYSICS_TASK,
     ControlKeys,

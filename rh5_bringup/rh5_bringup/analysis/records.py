@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from rh5_bringup.analysis.cdr import FloatArray
+from rh5_msgs_py.array_types import FloatArray
 
 
 class ReportError(Exception):
@@ -134,7 +134,6 @@ class Recording:
 __all__ = [
     "BoolSeries",
     "DiagnosticRecord",
-    "FloatArray",
     "JointSeries",
     "NotABagError",
     "PlannedBase",

@@ -15,7 +15,8 @@ from typing import Final
 import numpy as np
 
 from rh5_bringup.analysis.metrics import Transition, interpolate_clamped, resample
-from rh5_bringup.analysis.records import FloatArray, JointSeries, PlannedJoints
+from rh5_bringup.analysis.records import JointSeries, PlannedJoints
+from rh5_msgs_py.array_types import FloatArray
 
 FIT_HORIZON_S: Final = 10.0
 """Seconds of the plan compared when aligning (enough to include motion, bounded cost)."""

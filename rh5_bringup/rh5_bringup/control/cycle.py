@@ -27,9 +27,9 @@ from rh5_bringup.hardware.ndlcom.payloads import CommandMode
 from rh5_hyrodyn_mapper.mapper_core import MapperCore
 from rh5_hyrodyn_mapper.mapping import JointSample
 from rh5_joint_stabilizer.controller import Command, Measurement
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.realtime import LatencyWindow
 
-FloatArray = np.ndarray
 Triple = tuple[FloatArray, FloatArray | None, FloatArray | None]
 STAGES = ("read", "to_joints", "stabilize", "to_actuators", "write")
 

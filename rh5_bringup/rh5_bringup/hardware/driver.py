@@ -34,9 +34,9 @@ from rh5_bringup.hardware.ndlcom.payloads import (
 )
 from rh5_bringup.hardware.transports.base import Transport
 from rh5_hyrodyn_mapper.kinematics.base import ActuatorLimits
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.realtime import LatencyWindow, LatestValue
 
-FloatArray = np.ndarray
 STARTUP_GRACE_NS = 200_000_000  # the router learns where the driver is from its first commands
 BOARD_CLOCK_RESTART_NS = 1_000_000_000  # the boards' clock going back this far is a restart, not a late frame
 

@@ -23,9 +23,9 @@ import yaml
 from rh5_bringup.hardware.ndlcom.payloads import CommandMode
 from rh5_hyrodyn_mapper.kinematics.base import ActuatorLimits
 from rh5_hyrodyn_mapper.mapping import robot_mapper
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import ACTUATOR_NAMES, LINEAR_ACTUATOR_NAMES, NUM_ACTUATORS
 
-FloatArray = npt.NDArray[np.float64]
 ArrayLike = npt.ArrayLike
 
 SUBSTEPS = 4

@@ -72,8 +72,8 @@ import numpy.typing as npt
 
 from rh5_bringup.hardware.ndlcom.payloads import CommandMode
 from rh5_bringup.sim.actuator_model import ActuatorParams, ActuatorState, default_params, read_only
+from rh5_msgs_py.array_types import FloatArray
 
-FloatArray = npt.NDArray[np.float64]
 ArrayLike = npt.ArrayLike
 
 

@@ -33,9 +33,8 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import JOINT_NAMES, NUM_JOINTS
-
-FloatArray = npt.NDArray[np.float64]
 
 CONTACT_DAMPING: Final = 1e-9
 """Regularisation of the constraint mobility J K^-1 J^T (a held sole and a joint limit in the same leg can be

@@ -25,18 +25,17 @@ from dataclasses import dataclass
 from typing import Final, Literal
 
 import numpy as np
-import numpy.typing as npt
 
 from rh5_bringup.hardware.ndlcom.payloads import CommandMode
 from rh5_hyrodyn_mapper.mapping import robot_mapper
 from rh5_hyrodyn_mapper.model import joint_limits
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import NUM_ACTUATORS, NUM_JOINTS
 from rh5_msgs_py.trajectory_file import NQ, TrajectoryData
 
 from .actuators import ActuatorBank
 from .physics import JointDynamics, PhysicsWorld, build_physics, joint_dynamics, quaternion_matrix
 
-FloatArray = npt.NDArray[np.float64]
 Controller = Literal["rigid_pd", "joint_pd", "boards"]
 Advance = Callable[[FloatArray, FloatArray, FloatArray], None]
 """One 1 ms control period towards joint positions, velocities and feed-forward torques."""

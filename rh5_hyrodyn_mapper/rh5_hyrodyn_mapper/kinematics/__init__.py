@@ -33,7 +33,6 @@ from rh5_msgs_py.names import JOINT_INDEX, SUBMECHANISMS, Submechanism
 from .ankle_sprr import Ankle2SPRR1U
 from .base import (
     ActuatorLimits,
-    FloatArray,
     ForwardKinematicsError,
     KinematicsError,
     SingularityError,
@@ -48,7 +47,6 @@ __all__ = [
     "HEAD_TRANSMISSION",
     "ActuatorLimits",
     "Ankle2SPRR1U",
-    "FloatArray",
     "ForwardKinematicsError",
     "KinematicsError",
     "Lambda1RRPR",

@@ -18,9 +18,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from . import kernels
+from rh5_msgs_py.array_types import FloatArray
 
-FloatArray = npt.NDArray[np.float64]
+from . import kernels
 
 
 class KinematicsError(ValueError):

@@ -21,9 +21,9 @@ from collections.abc import Sequence
 from typing import Final
 
 import numpy as np
-import numpy.typing as npt
 
 from rh5_hyrodyn_mapper.kinematics._compiled import MAX_DOF, ROW_WIDTH, fk, ik, pose
+from rh5_msgs_py.array_types import FloatArray
 
 __all__ = [
     "FK_NOT_CONVERGED",
@@ -44,7 +44,6 @@ __all__ = [
     "table",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 
 KIND_COPY: Final = 0
 KIND_RRPR: Final = 1

@@ -25,8 +25,10 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
+from rh5_msgs_py.array_types import FloatArray
+
 from . import kernels
-from .base import ActuatorLimits, FloatArray, ImmutableModel, actuator_limits, frozen_array
+from .base import ActuatorLimits, ImmutableModel, actuator_limits, frozen_array
 
 __all__ = ["HEAD_TRANSMISSION", "LinearTransmission", "SerialJoint", "transmission_limits"]
 

@@ -25,15 +25,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from rh5_msgs_py.array_types import FloatArray
+
 from . import kernels
-from .base import (
-    ActuatorLimits,
-    FloatArray,
-    ForwardKinematicsError,
-    ImmutableModel,
-    KinematicsError,
-    frozen_array,
-)
+from .base import ActuatorLimits, ForwardKinematicsError, ImmutableModel, KinematicsError, frozen_array
 
 __all__ = ["Platform2SPU1U", "UniversalJointPlatform"]
 

@@ -16,6 +16,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import FOOT_FRAMES, JOINT_NAMES, NUM_JOINTS
 
 from .urdf import generate_urdf, load_parameters
@@ -35,7 +36,6 @@ __all__ = [
     "v_index",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 IndexArray = npt.NDArray[np.intp]
 
 CONTACT_FRAMES: Final[dict[str, tuple[str, ...]]] = {

@@ -13,7 +13,9 @@ from trajectory_msgs.msg import (
     MultiDOFJointTrajectoryPoint,
 )
 
-from ._common import NS_PER_S, FloatArray
+from rh5_msgs_py.array_types import FloatArray
+
+from ._common import NS_PER_S
 from .joint_names import _listing, _unique_names
 from .joint_trajectory import _checked_matrix, _point_times_ns, _timed_points, _trajectory
 from .times import _check_increasing, _times_to_ns, time_to_ns

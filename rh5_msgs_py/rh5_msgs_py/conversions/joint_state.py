@@ -10,7 +10,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 from sensor_msgs.msg import JointState
 
-from ._common import FloatArray
+from rh5_msgs_py.array_types import FloatArray
+
 from .joint_names import JointNameIndex, _name_index
 from .times import _CDR_STAMP_OFFSET, _STAMP, _set_stamp, _split_ns
 

@@ -15,7 +15,9 @@ from trajectory_msgs.msg import (
     MultiDOFJointTrajectoryPoint,
 )
 
-from ._common import NS_PER_S, FloatArray
+from rh5_msgs_py.array_types import FloatArray
+
+from ._common import NS_PER_S
 from .joint_names import _name_index, _unique_names
 from .joint_state import _read_doubles
 from .times import _STAMP, _check_increasing, _set_stamp, _times_to_ns, time_to_ns

@@ -6,7 +6,8 @@ import numpy as np
 from geometry_msgs.msg import WrenchStamped
 from numpy.typing import ArrayLike
 
-from ._common import FloatArray
+from rh5_msgs_py.array_types import FloatArray
+
 from .joint_state import _vector
 from .times import _set_stamp
 

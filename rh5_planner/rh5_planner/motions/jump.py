@@ -8,14 +8,14 @@ from dataclasses import dataclass
 from typing import ClassVar, Final
 
 import numpy as np
-import numpy.typing as npt
+
+from rh5_msgs_py.array_types import FloatArray
 
 from .spec import SIDES, KnotSpec, MotionSpec, Reference, knot_count, stance
 from .validation import MotionError, check_count, check_nonnegative, check_positive
 
 __all__ = ["GRAVITY", "JumpMotion"]
 
-FloatArray = npt.NDArray[np.float64]
 GRAVITY: Final = 9.81
 
 

@@ -19,13 +19,13 @@ from dataclasses import dataclass
 from typing import Any, ClassVar, Final
 
 import numpy as np
-import numpy.typing as npt
+
+from rh5_msgs_py.array_types import FloatArray
 
 from .validation import MotionError, check_nonnegative, check_positive
 
 __all__ = ["COST_TERMS", "SIDES", "KnotSpec", "MotionSpec", "Reference", "knot_count", "stance"]
 
-FloatArray = npt.NDArray[np.float64]
 SIDES: Final = ("left", "right")
 COST_TERMS: Final = ("foot", "com", "friction", "cop", "joint", "posture", "torque")
 """Cost terms of the paper's table; costs.yaml ``motion_costs`` says which a motion switches on."""

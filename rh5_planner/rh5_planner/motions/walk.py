@@ -7,14 +7,13 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-import numpy.typing as npt
+
+from rh5_msgs_py.array_types import FloatArray
 
 from .spec import SIDES, KnotSpec, MotionSpec, Reference, knot_count, stance
 from .validation import MotionError, check_count, check_nonnegative, check_positive
 
 __all__ = ["WalkMotion"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 def _step(start: FloatArray, end: FloatArray, height: float, s: float) -> FloatArray:

@@ -16,9 +16,9 @@ from typing import Any
 
 import crocoddyl
 import numpy as np
-import numpy.typing as npt
 
 from rh5_hyrodyn_mapper.model import q_index, v_index
+from rh5_msgs_py.array_types import FloatArray
 
 from ..actuator_bounds import ActuatorBounds
 from ..actuator_constraints import ActuatorConstraints
@@ -31,8 +31,6 @@ from .robot import RobotSetup, build_robot
 from .warm_start import state_guess
 
 __all__ = ["BuiltProblem", "build_problem"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)

@@ -22,10 +22,10 @@ from typing import Any, Final
 
 import crocoddyl
 import numpy as np
-import numpy.typing as npt
 import pinocchio as pin
 
 from rh5_hyrodyn_mapper.model import v_index
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import JOINT_GROUPS, JOINT_NAMES
 
 from ..feet import FOOT_SIZE_M
@@ -41,8 +41,6 @@ __all__ = [
     "make_cost_terms",
     "unbounded",
 ]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 def _group_vector(values: Mapping[str, float], model: pin.Model) -> FloatArray:

@@ -10,17 +10,15 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
-import numpy.typing as npt
 import pinocchio as pin
 
 from rh5_hyrodyn_mapper.model import standing_configuration
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import FOOT_FRAMES
 
 from ..motions import SIDES
 
 __all__ = ["nominal_configuration", "solve_ik"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 def nominal_configuration(model: pin.Model, knee_bend_rad: float, iterations: int = 60) -> FloatArray:

@@ -18,6 +18,7 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from rh5_hyrodyn_mapper.model import model_hash, q_index, v_index
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import FOOT_FRAMES
 from rh5_msgs_py.trajectory_file import TrajectoryData, save_trajectory
 
@@ -27,8 +28,6 @@ from .builder import BuiltProblem
 from .robot import RobotSetup
 
 __all__ = ["PlanResult", "extract_result"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)

@@ -17,10 +17,10 @@ from dataclasses import dataclass
 
 import crocoddyl
 import numpy as np
-import numpy.typing as npt
 import pinocchio as pin
 
 from rh5_hyrodyn_mapper.model import build_model, joint_limits, v_index
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import FOOT_FRAMES, HAND_FRAMES
 
 from ..limit_scale import LimitScaleLike, limit_factors
@@ -28,8 +28,6 @@ from ..motions import SIDES, Reference
 from .ik import nominal_configuration
 
 __all__ = ["RobotSetup", "build_robot", "robot_mass"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)

@@ -23,8 +23,8 @@ from typing import Any, Final
 
 import crocoddyl
 import numpy as np
-import numpy.typing as npt
 
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import JOINT_NAMES
 
 from ..cost_config import load_cost_config, motion_config
@@ -37,8 +37,6 @@ from .robot import robot_mass
 from .settings import ProgressCallback, SolverSettings
 
 __all__ = ["solve"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 _TERM_OF_COST: Final = {

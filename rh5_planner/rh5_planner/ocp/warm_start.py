@@ -14,16 +14,15 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-import numpy.typing as npt
 import pinocchio as pin
+
+from rh5_msgs_py.array_types import FloatArray
 
 from ..motions import SIDES, KnotSpec, MotionSpec
 from .ik import solve_ik
 from .robot import RobotSetup
 
 __all__ = ["state_guess"]
-
-FloatArray = npt.NDArray[np.float64]
 
 
 def _zmp_reference(specs: Sequence[KnotSpec]) -> tuple[FloatArray, FloatArray]:

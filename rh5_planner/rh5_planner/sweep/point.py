@@ -25,7 +25,8 @@ from dataclasses import dataclass, field
 from typing import Any, Final
 
 import numpy as np
-import numpy.typing as npt
+
+from rh5_msgs_py.array_types import FloatArray
 
 from ..limit_analysis import LimitAnalysis
 from ..limit_scale import ACTUATOR_KINDS, JOINT_KINDS, MAPPED_ACTUATORS, side_free_name
@@ -41,7 +42,6 @@ __all__ = [
     "use_columns",
 ]
 
-FloatArray = npt.NDArray[np.float64]
 STATUSES: Final = ("feasible", "over_limits", "task_missed", "not_converged", "failed")
 JUMP_TASK_FRACTION: Final = 0.9
 """A jump does its task when its soles clear this fraction of ``height_m`` (the design heuristic's check)."""

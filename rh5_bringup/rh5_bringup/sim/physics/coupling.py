@@ -31,16 +31,14 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
 from rh5_bringup.sim.actuator_model import ActuatorParams
 from rh5_bringup.sim.actuators import ActuatorBank, ActuatorMeasurement
 from rh5_bringup.sim.physics.world import GroundTruth, JointDynamics, PhysicsWorld, Pose
 from rh5_hyrodyn_mapper.mapping import KinematicsError, RobotMapper, robot_mapper
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import NUM_JOINTS
 from rh5_msgs_py.realtime import LatestValue
-
-FloatArray = npt.NDArray[np.float64]
 
 MAX_CATCH_UP_S = 3e-3
 """At most this much physics time per call; the rest is dropped and counted."""

@@ -7,12 +7,10 @@ from __future__ import annotations
 import re
 
 import numpy as np
-import numpy.typing as npt
 
 from rh5_hyrodyn_mapper.model.urdf import generate_urdf, load_parameters
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import FOOT_FRAMES, HAND_FRAMES, JOINT_NAMES
-
-FloatArray = npt.NDArray[np.float64]
 
 CONTACT_RADIUS = 0.005
 """Radius of the corner spheres [m]; their lowest points lie in the sole plane."""

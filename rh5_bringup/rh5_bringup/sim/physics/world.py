@@ -37,15 +37,13 @@ from tempfile import TemporaryDirectory
 from typing import Any, NamedTuple
 
 import numpy as np
-import numpy.typing as npt
 import pinocchio as pin
 import pybullet as pb
 
 from rh5_bringup.sim.armature import ArmatureCorrection
 from rh5_bringup.sim.physics.urdf import contact_links, physics_urdf
+from rh5_msgs_py.array_types import FloatArray
 from rh5_msgs_py.names import FOOT_FRAMES, JOINT_NAMES, NUM_JOINTS
-
-FloatArray = npt.NDArray[np.float64]
 
 TIME_STEP = 5e-4
 """PyBullet step [s]: two per 1 ms board cycle, each after a run of the board cascade (see coupling.py)."""
