@@ -22,15 +22,16 @@ from rclpy._rclpy_pybind11 import RCLError
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import (
     ConditionReachedException,
+    Executor,
     ExternalShutdownException,
     ShutdownException,
-    SingleThreadedExecutor,
     TimeoutException,
 )
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.signals import SignalHandlerOptions, install_signal_handlers
 from rclpy.subscription import Subscription
+from rclpy.task import Future
 from rclpy.timer import Timer
 
 from rh5_msgs_py.interfaces import Topic, message_class
@@ -208,22 +209,31 @@ def log_realtime_grant(logger: Any, grant: RealtimeGrant) -> None:
         )
 
 
-class GatedExecutor(SingleThreadedExecutor):
+class GatedExecutor(Executor):
     """A single-threaded executor that runs each ready callback only once ``gate`` returns.
 
     In a process with a real-time loop the gate waits for the loop's slack: Python runs one thread at a time,
     and a callback that holds the interpreter lock when the loop wakes delays that cycle by up to the lock's
     switch interval plus the callback's longest C call. Measured in the control process (make run): 594 deadline
-    misses ungated, 405 gated; loading a 6300-point trajectory cost 136 misses ungated, 27 gated.
+    misses ungated, 405 gated; loading a 6300-point trajectory cost 136 misses ungated, 27 gated. Built on rclpy's
+    custom-executor interface (``spin_once`` and ``spin_once_until_future_complete`` over
+    ``wait_for_ready_callbacks``), as rclpy's own single-threaded executor is.
     """
 
     def __init__(self, gate: Callable[[], object]) -> None:
         super().__init__()
         self._gate = gate
 
-    def _spin_once_impl(
-        self, timeout_sec: float | None = None, wait_condition: Callable[[], bool] = lambda: False
-    ) -> None:
+    def spin_once(self, timeout_sec: float | None = None) -> None:
+        """Wait up to ``timeout_sec`` for one ready callback; run it once the gate opens."""
+        self._run_one(timeout_sec, lambda: False)
+
+    def spin_once_until_future_complete(self, future: Future, timeout_sec: Any = None) -> None:
+        """As ``spin_once``, and also return when ``future`` is done."""
+        future.add_done_callback(lambda _future: self.wake())
+        self._run_one(timeout_sec, future.done)
+
+    def _run_one(self, timeout_sec: Any, wait_condition: Callable[[], bool]) -> None:
         try:
             handler, _, _ = self.wait_for_ready_callbacks(timeout_sec, None, wait_condition)
         except (ShutdownException, TimeoutException, ConditionReachedException):

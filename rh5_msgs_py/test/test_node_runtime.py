@@ -43,6 +43,26 @@ def test_the_gated_executor_runs_each_callback_only_after_its_gate(ros_graph: An
     assert fired[0] >= closed_until  # the first waited for the gate to open
 
 
+def test_the_gated_executor_completes_a_future_through_its_gate(ros_graph: Any) -> None:
+    """rclpy.spin_until_future_complete goes through spin_once_until_future_complete: gated there too."""
+    import rclpy
+    from rclpy.task import Future
+
+    node = rclpy.create_node("gated_future_test", context=ros_graph.context)
+    gates: list[float] = []
+    future = Future()
+    node.create_timer(0.01, lambda: future.done() or future.set_result(len(gates)))
+    executor = GatedExecutor(lambda: gates.append(time.monotonic()))
+    executor.add_node(node)
+    try:
+        rclpy.spin_until_future_complete(node, future, executor=executor, timeout_sec=2.0)
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+    assert future.done()
+    assert future.result() == 1  # the timer's callback ran behind one gate
+
+
 STOPPED_WHILE_BUILDING = """
 import os, signal
 from rh5_joint_stabilizer.stabilizer_node import StabilizerNode

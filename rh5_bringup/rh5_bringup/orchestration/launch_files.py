@@ -9,11 +9,11 @@ file differs from what the description renders.
 
 from __future__ import annotations
 
-import argparse
 import pprint
 import sys
 from pathlib import Path
 
+from rh5_bringup.orchestration.generated_files import generated_files_main
 from rh5_bringup.orchestration.launcher import Bringup, load_bringup
 
 LAUNCH_DIR = Path(__file__).resolve().parents[2] / "launch"
@@ -165,24 +165,13 @@ def render_launch_file(bringup: Bringup, file_name: str = LAUNCH_FILE) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Write (or with --check, verify) rh5_bringup/launch/rh5.launch.py."""
-    parser = argparse.ArgumentParser(
-        prog="python -m rh5_bringup.orchestration.launch_files", description=__doc__.splitlines()[0]
+    return generated_files_main(
+        "rh5_bringup.orchestration.launch_files",
+        __doc__.splitlines()[0],
+        LAUNCH_DIR,
+        lambda folder: {folder / LAUNCH_FILE: render_launch_file(load_bringup())},
+        argv,
     )
-    parser.add_argument("--check", action="store_true", help="exit 1 if the committed file is stale")
-    parser.add_argument("--dir", type=Path, default=LAUNCH_DIR, help="launch folder (default: the package's)")
-    args = parser.parse_args(argv)
-    path = args.dir / LAUNCH_FILE
-    text = render_launch_file(load_bringup())
-    if args.check:
-        current = path.read_text(encoding="utf-8") if path.exists() else ""
-        if current != text:
-            print(f"{path} is stale: run python -m rh5_bringup.orchestration.launch_files", file=sys.stderr)
-            return 1
-        return 0
-    args.dir.mkdir(parents=True, exist_ok=True)
-    path.write_text(text, encoding="utf-8")
-    print(f"wrote {path}")
-    return 0
 
 
 if __name__ == "__main__":

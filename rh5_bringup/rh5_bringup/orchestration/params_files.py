@@ -13,12 +13,12 @@ committed file differs from what the specs render.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 import yaml
 
+from rh5_bringup.orchestration.generated_files import generated_files_main
 from rh5_bringup.orchestration.launcher import Bringup, NodeSpec, load_bringup
 from rh5_msgs_py.parameters import ParamSpec, load_spec
 
@@ -76,28 +76,14 @@ def render_params_file(bringup: Bringup, name: str) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Write (or with --check, verify) rh5_bringup/config/<node>.params.yaml for every node of the bringup."""
-    parser = argparse.ArgumentParser(
-        prog="python -m rh5_bringup.orchestration.params_files", description=__doc__.splitlines()[0]
-    )
-    parser.add_argument("--check", action="store_true", help="exit 1 if a committed file is stale")
-    parser.add_argument("--dir", type=Path, default=CONFIG_DIR, help="config folder (default: the package's)")
-    args = parser.parse_args(argv)
     bringup = load_bringup()
-    stale = []
-    for node in bringup.nodes:
-        path = args.dir / f"{node.name}.params.yaml"
-        text = render_params_file(bringup, node.name)
-        if args.check:
-            if not path.exists() or path.read_text(encoding="utf-8") != text:
-                stale.append(str(path))
-            continue
-        args.dir.mkdir(parents=True, exist_ok=True)
-        path.write_text(text, encoding="utf-8")
-        print(f"wrote {path}")
-    if stale:
-        print(f"stale: {stale}: run python -m rh5_bringup.orchestration.params_files", file=sys.stderr)
-        return 1
-    return 0
+    return generated_files_main(
+        "rh5_bringup.orchestration.params_files",
+        __doc__.splitlines()[0],
+        CONFIG_DIR,
+        lambda folder: {folder / f"{n.name}.params.yaml": render_params_file(bringup, n.name) for n in bringup.nodes},
+        argv,
+    )
 
 
 if __name__ == "__main__":
