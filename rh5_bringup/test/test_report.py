@@ -446,3 +446,22 @@ def test_planned_base_is_the_one_published_with_the_planned_joints() -> None:
     assert planned_base_for([hold, motion], joints, t0=1.85) is motion
     assert planned_base_for([hold, motion], None, t0=1.85) is hold  # no joint plan: the last one received by t0
     assert planned_base_for([], joints, t0=1.85) is None
+
+
+def test_a_stream_stamped_from_simulated_time_zero_keeps_its_header_stamps() -> None:
+    """The simulation's first base pose is taken at t = 0: a zero stamp logged at zero is set, not missing (read as
+    missing, the whole stream fell back to receive times that lag by up to a /clock tick). A zero stamp on a
+    wall-clock recording still is missing."""
+    from rh5_bringup.analysis.load import pick_times
+
+    stamps = np.arange(0, 40_000_000, 4_000_000)
+    logged = np.array([0, 4, 8, 32, 32, 32, 32, 32, 32, 40]) * 1_000_000  # /clock ticks reach the recorder late
+    times, source = pick_times(stamps, logged)
+    assert source == "header"
+    np.testing.assert_array_equal(times, stamps)
+    wall0 = 1_795_000_000_000_000_000
+    assert pick_times(stamps, wall0 + logged)[1] == "receive"
+    unset_first = wall0 + stamps
+    unset_first[0] = 0
+    assert pick_times(unset_first, wall0 + logged)[1] == "receive"
+    assert pick_times(wall0 + stamps, wall0 + logged)[1] == "header"

@@ -70,8 +70,13 @@ def find_connections(connections: Iterable[Any], contract: interfaces.Topic) -> 
 
 
 def pick_times(stamps_ns: NDArray[np.int64], log_ns: NDArray[np.int64]) -> tuple[NDArray[np.int64], str]:
-    """Header stamps if every one is set and they sit on the recorder's clock, else the receive times."""
-    set_everywhere = bool(len(stamps_ns)) and bool((stamps_ns > 0).all())
+    """Header stamps if every one is set and they sit on the recorder's clock, else the receive times.
+
+    A zero stamp logged at zero is set: on simulated time the first sample is taken at t = 0 (the simulation's
+    base pose), and reading it as unset put the whole stream on receive times, which lag by up to a /clock tick.
+    """
+    stamp_set = (stamps_ns > 0) | ((stamps_ns == 0) & (log_ns < STAMP_TOLERANCE_NS))
+    set_everywhere = bool(len(stamps_ns)) and bool(stamp_set.all())
     if set_everywhere and np.median(np.abs(stamps_ns - log_ns)) < STAMP_TOLERANCE_NS:
         return stamps_ns, "header"
     return log_ns, "receive"
@@ -209,8 +214,9 @@ def _planned_base(msg: Any, t: float) -> PlannedBase:
 
 
 def _stamp_or_log(header: Any, log_ns: int) -> int:
-    ns = time_to_ns(header.stamp)
-    return ns if ns > 0 and abs(ns - log_ns) < STAMP_TOLERANCE_NS else log_ns
+    """One low-rate message's time, by ``pick_times``'s rule."""
+    ns, _ = pick_times(np.array([time_to_ns(header.stamp)], dtype=np.int64), np.array([log_ns], dtype=np.int64))
+    return int(ns[0])
 
 
 def _diagnostics(msg: Any, log_ns: int, origin_ns: int) -> list[DiagnosticRecord]:
