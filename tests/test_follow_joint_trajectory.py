@@ -183,3 +183,31 @@ def _sleep_future(node: Any, seconds: float) -> Any:
 
     timer = node.create_timer(seconds, fire)
     return future
+
+
+def test_a_stop_during_a_goal_ends_the_node_cleanly(ros_graph: Any, ros_test_environment: dict[str, str]) -> None:
+    """An operator's Ctrl-C while a goal plays: the node aborts the goal and exits 0, without a traceback (rcl
+    refused the abort's status once SIGINT had shut the context down, and the node exited 1)."""
+    from control_msgs.action import FollowJointTrajectory
+    from rclpy.action import ActionClient
+
+    spec = NodeSpec("stabilizer_stop", "rh5_joint_stabilizer", "stabilizer_node", {"state_timeout_s": 0.5})
+    echo = EchoRobot(ros_graph)
+    echo.loop.start()
+    client = ActionClient(ros_graph, FollowJointTrajectory, "/stabilizer_stop/follow_joint_trajectory")
+    log_dir = Path(ros_test_environment["ROS_LOG_DIR"]) / "stabilizer_stop"
+    try:
+        with SuiteRun(Bringup("", (spec,)), log_dir, int(ros_test_environment["ROS_DOMAIN_ID"])) as run:
+            assert wait_for_nodes(ros_graph, {"stabilizer_stop"}) == set()
+            assert client.wait_for_server(timeout_sec=10.0)
+            handle = _send(echo, client, _goal(list(JOINT_NAMES), 30.0))
+            assert handle.accepted
+            echo.spin_until(_sleep_future(echo.node, 0.5), 3.0)
+    finally:
+        client.destroy()
+        echo.loop.stop()
+    node = run.processes[0]
+    assert node.process.returncode == 0
+    log = node.stderr_path.read_text()
+    assert "Traceback" not in log
+    assert "goal aborted (code -1): the stabilizer is shutting down" in log

@@ -216,7 +216,9 @@ class TrajectoryActionServer:
         """End ``goal`` (succeed, abort or canceled) with ``code`` and ``text``, once."""
         if goal.done.done():
             return
-        if goal.handle.is_active:
+        # A stop (SIGINT, SIGTERM) shuts the context down before the node is destroyed: the goal's status can then
+        # no longer be published (rcl raises), and its client sees the server go away instead.
+        if goal.handle.is_active and self._node.context.ok():
             getattr(goal.handle, how)()
         key = {"succeed": "succeeded", "abort": "aborted", "canceled": "canceled"}[how]
         self.counts[key] += 1
