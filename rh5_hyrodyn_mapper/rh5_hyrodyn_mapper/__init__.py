@@ -11,6 +11,10 @@ from typing import TYPE_CHECKING
 
 from rh5_msgs_py.lazy_exports import lazy_exports
 
+from .openmp_default import default_openmp_to_one_thread
+
+default_openmp_to_one_thread()  # before anything here imports Pinocchio
+
 if TYPE_CHECKING:
     from .kinematics import (
         ForwardKinematicsError,

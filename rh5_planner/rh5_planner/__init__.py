@@ -17,7 +17,10 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from rh5_hyrodyn_mapper.openmp_default import default_openmp_to_one_thread
 from rh5_msgs_py.lazy_exports import lazy_exports
+
+default_openmp_to_one_thread()  # before anything here imports Crocoddyl or Pinocchio
 
 if TYPE_CHECKING:
     from .cost_config import load_cost_config
