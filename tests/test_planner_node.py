@@ -24,7 +24,7 @@ pytestmark = pytest.mark.ros
 
 MOTION = "squat_with_5kg_weights"  # converges in ~14 iterations, ~0.4 s
 SLOW_MOTION = "fast_squats"  # ~1.3 s of solving: long enough to call other services meanwhile
-PLAN_TIMEOUT_S = 120.0  # a solve takes ~10 s alone; next to two CPU burners it took over 30 s
+PLAN_TIMEOUT_S = 120.0  # a solve takes ~3 s alone; next to two CPU burners, before the OpenMP default, over 30 s
 
 
 class Observer:
