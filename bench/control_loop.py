@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import os
 import socket
-import subprocess
 import sys
 import time
 from dataclasses import replace
@@ -30,7 +29,7 @@ from typing import Any
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from loop_floor import measure_floor, steal_line
+from loop_floor import cpu_burners, measure_floor, steal_line
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
@@ -49,7 +48,6 @@ TARGET_JITTER_P99_US = 100.0
 TARGET_PERIOD_MAX_US = 2000.0
 TARGET_LATENCY_P99_US = 1000.0
 SINE_RAD, SINE_HZ = 0.02, 0.5
-BURN = "import time\nwhile True:\n    time.monotonic()\n"
 
 
 def free_port() -> int:
@@ -118,7 +116,6 @@ def main() -> int:
     bringup = bringup.with_parameters("driver", router_port=port, board_silence_timeout_s=0.5, command_timeout_s=0.5)
     bringup = bringup.with_parameters("stabilizer", state_timeout_s=0.5)
     log_dir = Path("out/bench/control_loop") / time.strftime("%Y%m%d_%H%M%S")
-    burners: list[subprocess.Popen[bytes]] = []
     with SuiteRun(bringup, log_dir) as run:
         os.environ.update(run.env)
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
@@ -137,17 +134,12 @@ def main() -> int:
             observer.spin(1.0)
             print("driver enable:", call_set_bool(node, "/driver/enable", True)[1])
             print("stabilizer start:", call_trigger(node, "/stabilizer/start")[1])
-            burners = [
-                subprocess.Popen([sys.executable, "-c", BURN], stdout=subprocess.DEVNULL) for _ in range(args.burners)
-            ]
-            observer.spin(3.0)  # ramp-in, and the first second of the burners
-            observer.statuses.clear()
-            print(f"measuring {args.seconds:.0f} s with {len(burners)} CPU burners ...", flush=True)
-            observer.spin(args.seconds)
+            with cpu_burners(args.burners):
+                observer.spin(3.0)  # ramp-in, and the first second of the burners
+                observer.statuses.clear()
+                print(f"measuring {args.seconds:.0f} s with {args.burners} CPU burners ...", flush=True)
+                observer.spin(args.seconds)
         finally:
-            for burner in burners:
-                burner.kill()
-                burner.wait()
             node.destroy_node()
             rclpy.try_shutdown()
     cycle = report(observer.statuses, args)
@@ -158,13 +150,8 @@ def main() -> int:
 
 def compare_with_floor(cycle: tuple[float, float], args: argparse.Namespace) -> None:
     """Run the bare loop on the cycle's CPU beside as many burners; print both per second, and their ratio."""
-    burners = [subprocess.Popen([sys.executable, "-c", BURN], stdout=subprocess.DEVNULL) for _ in range(args.burners)]
-    try:
+    with cpu_burners(args.burners):
         floor = measure_floor(args.floor)
-    finally:
-        for burner in burners:
-            burner.kill()
-            burner.wait()
     bare = (floor["misses"] / args.floor, floor["over_2ms"] / args.floor)
     print(f"\nthe machine's floor: the bare loop (50 us of work) on the cycle's CPU, {args.floor:g} s, same burners")
     print(f"  {'':<40} {'cycle':>10} {'bare loop':>10}   ratio")

@@ -24,6 +24,8 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -35,6 +37,18 @@ TARGET_PERIOD_MAX_US = 2000.0
 PERIOD_NS = 1_000_000
 SPIN_NS = 50_000
 BURN = "import time\nwhile True:\n    time.monotonic()\n"
+
+
+@contextmanager
+def cpu_burners(count: int) -> Iterator[None]:
+    """``count`` processes that spin on the CPU at normal priority (other work on the machine) while inside."""
+    burners = [subprocess.Popen([sys.executable, "-c", BURN], stdout=subprocess.DEVNULL) for _ in range(count)]
+    try:
+        yield
+    finally:
+        for burner in burners:
+            burner.kill()
+            burner.wait()
 
 
 def steal_ms(cpu: int) -> int:
@@ -128,8 +142,7 @@ def main() -> None:
     if args.child:
         print(json.dumps(measure(args.seconds, args.child == "awake", args.cpu)))
         return
-    burners = [subprocess.Popen([sys.executable, "-c", BURN]) for _ in range(args.burners)]
-    try:
+    with cpu_burners(args.burners):
         for keep_awake in (False, True):
             result = measure_floor(args.seconds, keep_awake, args.cpu)
             print(
@@ -141,10 +154,6 @@ def main() -> None:
             print(_row("longest period [us]", result["period_max_us"], TARGET_PERIOD_MAX_US, "us"))
             print(f"  {'periods over 2 ms':<26}{result['over_2ms']:10d}   target 0")
             print(steal_line(result))
-    finally:
-        for burner in burners:
-            burner.kill()
-            burner.wait()
 
 
 if __name__ == "__main__":

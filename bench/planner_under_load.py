@@ -12,8 +12,8 @@ import os
 import statistics
 import subprocess
 import sys
-from collections.abc import Iterator
-from contextlib import contextmanager
+
+from loop_floor import cpu_burners
 
 SOLVE = """
 import time
@@ -23,18 +23,6 @@ start = time.perf_counter()
 result = solve(get_motion({motion!r}), SolverSettings())
 print(time.perf_counter() - start, result.solver_log.iterations)
 """
-
-
-@contextmanager
-def burners(count: int) -> Iterator[None]:
-    """``count`` busy-looping processes at normal priority, as other work on a desk machine."""
-    procs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(count)]
-    try:
-        yield
-    finally:
-        for proc in procs:
-            proc.kill()
-            proc.wait()
 
 
 def solve_seconds(motion: str, omp_num_threads: str | None) -> float:
@@ -57,7 +45,7 @@ def main() -> int:
     variants = {"suite default (1 thread)": None, f"libgomp default ({cores} threads)": cores}
     for label, load in (("idle", 0), (f"{args.burners} burners", args.burners)):
         times: dict[str, list[float]] = {name: [] for name in variants}
-        with burners(load):
+        with cpu_burners(load):
             for _ in range(args.rounds):
                 for name, value in variants.items():
                     times[name].append(solve_seconds(args.motion, value))
